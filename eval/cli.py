@@ -1,0 +1,42 @@
+"""``lts``: the offline command line.
+
+It lives in ``eval`` because ``eval`` is the last package in the one-way data flow
+(rig → calib → slam_bridge → splat → eval) and so the only one allowed to import every other.
+Each package owns its own commands; this module only mounts them. Heavy libraries (torch, open3d)
+are imported inside the commands so that ``lts --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import typer
+
+from rig import trajectory_cli
+from rig.cli_support import run_app, version_callback
+
+app = typer.Typer(
+    name="lts",
+    help=(
+        "LiDAR-guided Triangle Splatting: turn a camera + LiDAR recording into an accurate, "
+        "photo-real triangle mesh (calibrate, map, prepare, train, evaluate)."
+    ),
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+app.add_typer(trajectory_cli.app, name="trajectory")
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False,
+        "--version",
+        callback=version_callback,
+        is_eager=True,
+        help="Print the version and exit.",
+    ),
+) -> None:
+    """LiDAR-guided Triangle Splatting toolkit (offline)."""
+
+
+main = run_app(app, "lts")

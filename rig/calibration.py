@@ -1,0 +1,89 @@
+"""The calibration file ``calib.yaml``: camera intrinsics, ``T_cam_lidar``, time offset, quality.
+
+``time_offset_s`` is the number of seconds to add to LiDAR timestamps to express them on the
+camera clock. ``quality`` holds the residuals that produced the calibration (free-form mapping).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from rig.camera import CameraModel
+from rig.errors import InputError
+from rig.transforms import check_rigid
+
+
+@dataclass(eq=False)
+class Calibration:
+    """Camera model, LiDAR→camera extrinsic ``(4, 4)``, time offset and quality block."""
+
+    camera: CameraModel
+    T_cam_lidar: np.ndarray = field(default_factory=lambda: np.eye(4))
+    time_offset_s: float = 0.0
+    quality: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.T_cam_lidar = check_rigid(self.T_cam_lidar, field="T_cam_lidar")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "camera": self.camera.to_dict(),
+            "T_cam_lidar": self.T_cam_lidar.tolist(),
+            "time_offset_s": float(self.time_offset_s),
+            "quality": _plain(self.quality),
+        }
+
+
+def _plain(value: Any) -> Any:
+    """Convert numpy scalars/arrays inside nested containers to plain Python for YAML."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def load_calibration(path: str | Path) -> Calibration:
+    """Read and validate ``calib.yaml``; errors name the file and the field."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise InputError(f"cannot read calibration ({exc.strerror})", path=path) from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"not valid YAML ({exc})", path=path) from None
+    if not isinstance(data, dict):
+        raise InputError("expected a mapping with camera, T_cam_lidar, time_offset_s", path=path)
+    if "camera" not in data:
+        raise InputError("missing", path=path, field="camera")
+    camera = CameraModel.from_dict(data["camera"], path=str(path))
+    T = check_rigid(data.get("T_cam_lidar", np.eye(4).tolist()), field="T_cam_lidar", path=str(path))
+    try:
+        offset = float(data.get("time_offset_s", 0.0))
+    except (TypeError, ValueError):
+        raise InputError(
+            f"expected seconds, got {data.get('time_offset_s')!r}", path=path, field="time_offset_s"
+        ) from None
+    if not np.isfinite(offset):
+        raise InputError("must be finite", path=path, field="time_offset_s")
+    quality = data.get("quality") or {}
+    if not isinstance(quality, dict):
+        raise InputError("expected a mapping", path=path, field="quality")
+    return Calibration(camera, T, offset, quality)
+
+
+def save_calibration(calibration: Calibration, path: str | Path) -> None:
+    """Write ``calib.yaml`` (atomically: a crash never leaves a half-written file)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(yaml.safe_dump(calibration.to_dict(), sort_keys=False, default_flow_style=None))
+    tmp.replace(path)

@@ -1,0 +1,84 @@
+"""Shared command-line plumbing for the ``rig`` and ``lts`` apps.
+
+Numbers go to stdout as one JSON object (``--json``); human text and progress go to stderr. Bad
+input ends the command with a one-line error and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Callable
+from importlib.metadata import PackageNotFoundError, version
+from typing import Any
+
+import click
+import numpy as np
+import typer
+from rich.console import Console
+
+from rig.errors import InputError, OutOfRangeError
+
+#: Console for human-readable output and progress bars (stderr, so stdout stays machine-readable).
+console = Console(stderr=True)
+
+EXIT_BAD_INPUT = 2
+
+
+def package_version() -> str:
+    """The installed version of the ``lidar-ts`` distribution."""
+    try:
+        return version("lidar-ts")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return _jsonable(value.item())
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def emit_json(obj: dict[str, Any]) -> None:
+    """Print ``obj`` as one JSON object on stdout (numpy values converted, NaN/Inf as null)."""
+    sys.stdout.write(json.dumps(_jsonable(obj)) + "\n")
+    sys.stdout.flush()
+
+
+def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
+    """Wrap a Typer app into a console-script entry point that reports bad input in one line."""
+
+    def main() -> None:
+        try:
+            app(prog_name=prog_name, standalone_mode=False)
+        except (InputError, OutOfRangeError) as exc:
+            console.print(f"[bold red]error:[/] {exc}", highlight=False, markup=True)
+            sys.exit(EXIT_BAD_INPUT)
+        except typer.Exit as exc:
+            sys.exit(exc.exit_code)
+        except typer.Abort:
+            console.print("aborted")
+            sys.exit(130)
+        except KeyboardInterrupt:
+            console.print("interrupted")
+            sys.exit(130)
+        except click.ClickException as exc:  # usage errors carry their own message and exit code
+            exc.show()
+            sys.exit(exc.exit_code)
+
+    return main
+
+
+def version_callback(value: bool) -> None:
+    """Typer callback for ``--version``."""
+    if value:
+        typer.echo(f"lidar-ts {package_version()}")
+        raise typer.Exit()

@@ -1,0 +1,1 @@
+"""splat: triangle model, differentiable rasteriser (reference / CPU / CUDA), losses, training, export."""

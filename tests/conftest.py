@@ -1,0 +1,28 @@
+"""Shared fixtures: paths to the real sensor data beside the project, hypothesis profiles."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+PROJECT_ROOT = Path(__file__).resolve().parents[1]
+REAL_DATA = PROJECT_ROOT.parent / "shared" / "data" / "real"
+
+# "ci" keeps property tests short enough for the suite's time budget; "long" is for bug hunts:
+#   HYPOTHESIS_PROFILE=long .venv/bin/pytest
+settings.register_profile("ci", max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile(
+    "long", max_examples=2000, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+@pytest.fixture(scope="session")
+def real_data() -> Path:
+    """Root of ../shared/data/real (skips the test when the shared data is not beside the project)."""
+    if not REAL_DATA.is_dir():
+        pytest.skip(f"real sensor data not found at {REAL_DATA}")
+    return REAL_DATA

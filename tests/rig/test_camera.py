@@ -1,0 +1,110 @@
+import numpy as np
+import pytest
+
+from rig import CameraModel, InputError
+
+K = np.array([[310.0, 0.0, 161.3], [0.0, 305.0, 118.7], [0.0, 0.0, 1.0]])
+CAMERAS = {
+    "pinhole-none": CameraModel("pinhole", 320, 240, K, []),
+    "pinhole-5": CameraModel("pinhole", 320, 240, K, [-0.28, 0.09, 0.0012, -0.0008, -0.012]),
+    "pinhole-8": CameraModel("pinhole", 320, 240, K, [0.1, -0.05, 0.001, 0.0005, 0.002, 0.05, -0.02, 0.003]),
+    "fisheye": CameraModel(
+        "fisheye",
+        320,
+        240,
+        [[186.0, 0.0, 161.3], [0.0, 183.0, 118.7], [0.0, 0.0, 1.0]],
+        [0.05, -0.01, 0.004, -0.001],
+    ),
+}
+
+
+def pixel_grid(camera: CameraModel, step: int = 7) -> np.ndarray:
+    u, v = np.meshgrid(np.arange(0, camera.width, step), np.arange(0, camera.height, step))
+    return np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64) + 0.25
+
+
+@pytest.mark.parametrize("name", CAMERAS)
+def test_project_of_unproject_is_identity_inside_image(name: str) -> None:
+    camera = CAMERAS[name]
+    pixels = pixel_grid(camera)
+    depth = np.linspace(0.5, 30.0, len(pixels))
+    points = camera.unproject(pixels, depth)
+    np.testing.assert_allclose(points[:, 2], depth, rtol=0, atol=1e-12)
+    reprojected = camera.project(points)
+    assert np.abs(reprojected - pixels).max() < 1e-9
+
+
+@pytest.mark.parametrize("name", CAMERAS)
+def test_unproject_of_project_recovers_the_ray(name: str) -> None:
+    camera = CAMERAS[name]
+    rays = camera.unproject(pixel_grid(camera, 11))
+    points = rays * np.linspace(1.0, 5.0, len(rays))[:, None]
+    back = camera.unproject(camera.project(points), points[:, 2])
+    assert np.abs(back - points).max() < 1e-9 * 5.0
+
+
+def test_points_behind_camera_project_to_nan() -> None:
+    pixels = CAMERAS["pinhole-5"].project(np.array([[0.1, 0.2, -1.0], [0.0, 0.0, 0.0], [0.0, 0.0, 2.0]]))
+    assert np.isnan(pixels[:2]).all()
+    np.testing.assert_allclose(pixels[2], K[:2, 2])
+
+
+def test_in_image_uses_pixel_centres() -> None:
+    camera = CAMERAS["pinhole-none"]
+    mask = camera.in_image(np.array([[-0.5, 0], [-0.51, 0], [319.49, 239.49], [319.5, 0], [np.nan, 1]]))
+    assert mask.tolist() == [True, False, True, False, False]
+
+
+@pytest.mark.parametrize("name", ["pinhole-5", "fisheye"])
+def test_undistort_image_samples_where_the_distorted_camera_sees_the_ray(name: str) -> None:
+    camera = CAMERAS[name]
+    target = camera.undistorted()
+    rng = np.random.default_rng(0)
+    image = rng.integers(0, 255, (camera.height, camera.width), dtype=np.uint8)
+    image = np.repeat(np.repeat(image[::8, ::8], 8, 0), 8, 1)  # blocky, so bilinear lookups are exact
+    out = camera.undistort_image(image, target)
+    pixels = pixel_grid(target, 13) - 0.25
+    source = camera.project(target.unproject(pixels))
+    inside = camera.in_image(source, margin=1.0)
+    src = np.round(source[inside]).astype(int)
+    dst = pixels[inside].astype(int)
+    # Compare where the source pixel is well inside an 8×8 block so interpolation is exact.
+    interior = (np.abs(source[inside] % 8 - 3.5) < 3.0).all(axis=1)
+    assert interior.sum() > 50
+    assert np.array_equal(out[dst[interior, 1], dst[interior, 0]], image[src[interior, 1], src[interior, 0]])
+
+
+def test_dict_round_trip() -> None:
+    camera = CAMERAS["fisheye"]
+    again = CameraModel.from_dict(camera.to_dict())
+    assert (
+        again.model == "fisheye"
+        and np.array_equal(again.K, camera.K)
+        and np.array_equal(again.dist, camera.dist)
+    )
+
+
+@pytest.mark.parametrize(
+    ("block", "field"),
+    [
+        (
+            {"model": "orthographic", "width": 4, "height": 4, "K": np.eye(3).tolist()},
+            "camera.model",
+        ),
+        ({"model": "pinhole", "width": 4, "height": 4, "K": [[1, 0], [0, 1]]}, "camera.K"),
+        (
+            {"model": "fisheye", "width": 4, "height": 4, "K": np.eye(3).tolist(), "dist": [0.1]},
+            "camera.dist",
+        ),
+        (
+            {"model": "pinhole", "width": 0, "height": 4, "K": np.eye(3).tolist()},
+            "camera.width/height",
+        ),
+        ({"model": "pinhole", "height": 4, "K": np.eye(3).tolist()}, "camera"),
+    ],
+)
+def test_bad_camera_block_names_file_and_field(block: dict, field: str) -> None:
+    with pytest.raises(InputError) as info:
+        CameraModel.from_dict(block, path="calib.yaml")
+    assert info.value.field == field
+    assert str(info.value).startswith("calib.yaml: ")

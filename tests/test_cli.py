@@ -1,0 +1,76 @@
+"""The console scripts: help for every command, one-line errors, lazy imports."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BIN = Path(sys.executable).parent
+
+
+@pytest.mark.parametrize("script", ["lts", "rig"])
+def test_help_works(script: str) -> None:
+    result = subprocess.run([BIN / script, "--help"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert "Usage" in result.stdout
+
+
+def test_every_lts_command_has_help() -> None:
+    import typer.main
+
+    from eval.cli import app
+
+    group = typer.main.get_command(app)
+
+    def walk(command, path):
+        yield path, command
+        for name, sub in getattr(command, "commands", {}).items():
+            yield from walk(sub, [*path, name])
+
+    for path, command in walk(group, []):
+        assert command.help or command.short_help, f"lts {' '.join(path)} has no help text"
+
+
+def test_importing_packages_loads_no_hardware_or_heavy_library() -> None:
+    code = (
+        "import sys, rig, calib, slam_bridge, splat, eval, eval.cli, rig.cli;"
+        "heavy = [m for m in ('depthai', 'open3d', 'usb', 'serial', 'ouster') if m in sys.modules];"
+        "print(heavy); sys.exit(1 if heavy else 0)"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_bad_trajectory_gives_one_line_error_and_exit_2(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.txt"
+    bad.write_text("1.0 0 0 0 0 0 0 1\n2.0 0 0 x 0 0 0 1\n")
+    result = subprocess.run(
+        [BIN / "lts", "trajectory", "info", bad], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert f"{bad}:2" in result.stderr.replace("\n", "") and "tz" in result.stderr
+
+
+def test_trajectory_convert_and_info_json(real_data: Path, tmp_path: Path) -> None:
+    import json
+
+    src = real_data / "trajectories_evo" / "fr2_desk_ORB.txt"
+    out = tmp_path / "orb.csv"
+    convert = subprocess.run(
+        [BIN / "lts", "trajectory", "convert", src, out, "--to", "euroc"],
+        capture_output=True,
+        timeout=60,
+    )
+    assert convert.returncode == 0, convert.stderr
+    info = subprocess.run(
+        [BIN / "lts", "trajectory", "info", out, "--json"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    summary = json.loads(info.stdout)
+    assert summary["poses"] == sum(
+        1 for line in src.read_text().splitlines() if line and not line.startswith("#")
+    )
