@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Callable
-from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
 import click
@@ -18,19 +17,12 @@ import typer
 from rich.console import Console
 
 from rig.errors import InputError, OutOfRangeError
+from rig.version import package_version
 
 #: Console for human-readable output and progress bars (stderr, so stdout stays machine-readable).
 console = Console(stderr=True)
 
 EXIT_BAD_INPUT = 2
-
-
-def package_version() -> str:
-    """The installed version of the ``lidar-ts`` distribution."""
-    try:
-        return version("lidar-ts")
-    except PackageNotFoundError:
-        return "unknown (not installed)"
 
 
 def _jsonable(value: Any) -> Any:
