@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import typer
 
+from eval.mesh_eval_cli import eval_command
 from rig import trajectory_cli
 from rig.cli_support import run_app, version_callback
 
@@ -24,6 +25,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.add_typer(trajectory_cli.app, name="trajectory")
+app.command("eval")(eval_command)
 
 
 @app.callback()

@@ -1,0 +1,149 @@
+"""Photometric metrics on held-out views: PSNR, SSIM and (when available locally) LPIPS.
+
+Images are float tensors in [0, 1] of shape ``(3, H, W)`` or ``(B, 3, H, W)``; numpy arrays are
+accepted too (``(H, W, 3)`` uint8 or float).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+#: SSIM window as in 3DGS evaluation (and scikit-image with ``gaussian_weights=True``).
+SSIM_WINDOW = 11
+SSIM_SIGMA = 1.5
+_C1 = 0.01**2
+_C2 = 0.03**2
+
+
+def as_image_tensor(image: np.ndarray | torch.Tensor) -> torch.Tensor:
+    """``(B, C, H, W)`` float64 tensor in [0, 1] from a tensor ``(C, H, W)``/``(B, C, H, W)`` in
+    [0, 1] or a numpy image ``(H, W)``/``(H, W, C)`` (uint8 → divided by 255)."""
+    if isinstance(image, np.ndarray):
+        array = image.astype(np.float64) / 255.0 if image.dtype == np.uint8 else image.astype(np.float64)
+        if array.ndim == 2:
+            array = array[:, :, None]
+        tensor = torch.from_numpy(np.ascontiguousarray(array.transpose(2, 0, 1)))
+    else:
+        tensor = image.to(torch.float64)
+    if tensor.ndim == 3:
+        tensor = tensor.unsqueeze(0)
+    if tensor.ndim != 4:
+        raise ValueError(f"expected an image of shape (C, H, W) or (B, C, H, W), got {tuple(tensor.shape)}")
+    return tensor
+
+
+def _check_pair(a: torch.Tensor, b: torch.Tensor) -> None:
+    if a.shape != b.shape:
+        raise ValueError(f"images differ in shape: {tuple(a.shape)} vs {tuple(b.shape)}")
+
+
+def psnr(rendered: np.ndarray | torch.Tensor, target: np.ndarray | torch.Tensor) -> float:
+    """Peak signal-to-noise ratio in dB for data range 1 (``inf`` for identical images)."""
+    a, b = as_image_tensor(rendered), as_image_tensor(target)
+    _check_pair(a, b)
+    mse = float(torch.mean((a - b) ** 2))
+    return math.inf if mse == 0.0 else -10.0 * math.log10(mse)
+
+
+def _gaussian_window(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
+    x = torch.arange(SSIM_WINDOW, dtype=dtype, device=device) - SSIM_WINDOW // 2
+    g = torch.exp(-(x**2) / (2 * SSIM_SIGMA**2))
+    return g / g.sum()
+
+
+def ssim_map(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Per-pixel SSIM ``(B, C, H, W)`` of images ``(B, C, H, W)`` in [0, 1], 11×11 Gaussian window
+    (σ = 1.5) applied separably with zero padding, as 3DGS's training loss computes it."""
+    g = _gaussian_window(a.dtype, a.device)
+    channels = a.shape[1]
+    gx = g.view(1, 1, 1, -1).expand(channels, 1, 1, -1)
+    gy = g.view(1, 1, -1, 1).expand(channels, 1, -1, 1)
+    pad = SSIM_WINDOW // 2
+
+    def blur(x: torch.Tensor) -> torch.Tensor:
+        x = F.conv2d(x, gx, padding=(0, pad), groups=channels)
+        return F.conv2d(x, gy, padding=(pad, 0), groups=channels)
+
+    mu_a, mu_b = blur(a), blur(b)
+    var_a = blur(a * a) - mu_a**2
+    var_b = blur(b * b) - mu_b**2
+    cov = blur(a * b) - mu_a * mu_b
+    return ((2 * mu_a * mu_b + _C1) * (2 * cov + _C2)) / ((mu_a**2 + mu_b**2 + _C1) * (var_a + var_b + _C2))
+
+
+def ssim(
+    rendered: np.ndarray | torch.Tensor,
+    target: np.ndarray | torch.Tensor,
+    border: Literal["crop", "zero-pad"] = "crop",
+) -> float:
+    """Mean SSIM (data range 1, 11×11 Gaussian window, σ = 1.5).
+
+    ``border="crop"`` (default) averages only pixels whose window lies inside the image, as
+    scikit-image's ``structural_similarity(gaussian_weights=True, sigma=1.5,
+    use_sample_covariance=False, data_range=1)`` does; ``"zero-pad"`` averages every pixel with
+    zero-padded windows, as the 3DGS evaluation scripts do (the two differ only near borders).
+    """
+    a, b = as_image_tensor(rendered), as_image_tensor(target)
+    _check_pair(a, b)
+    values = ssim_map(a, b)
+    if border == "crop":
+        pad = SSIM_WINDOW // 2
+        if a.shape[-1] <= 2 * pad or a.shape[-2] <= 2 * pad:
+            raise ValueError(
+                f"image {tuple(a.shape[-2:])} is smaller than the {SSIM_WINDOW}x{SSIM_WINDOW} window"
+            )
+        values = values[..., pad:-pad, pad:-pad]
+    elif border != "zero-pad":
+        raise ValueError(f"unknown border mode {border!r}; expected crop or zero-pad")
+    return float(values.mean())
+
+
+@dataclass(frozen=True)
+class LpipsResult:
+    """LPIPS distance, or ``value=None`` with the reason it could not be computed."""
+
+    value: float | None
+    reason: str = ""
+
+
+def _lpips_weights_present(net: str) -> str | None:
+    """Path of the torchvision backbone weights in the user's torch cache, if present."""
+    hub = Path(os.environ.get("TORCH_HOME", Path.home() / ".cache" / "torch")) / "hub" / "checkpoints"
+    prefix = {"alex": "alexnet-", "vgg": "vgg16-"}[net]
+    found = sorted(hub.glob(prefix + "*.pth")) if hub.is_dir() else []
+    return str(found[0]) if found else None
+
+
+def lpips(
+    rendered: np.ndarray | torch.Tensor,
+    target: np.ndarray | torch.Tensor,
+    net: Literal["alex", "vgg"] = "alex",
+) -> LpipsResult:
+    """LPIPS distance with the ``lpips`` package, only from weights already on this machine.
+
+    Never downloads: when the package, torchvision or the backbone weights are missing, returns
+    ``value=None`` with the reason (never 0, never a random network).
+    """
+    for module in ("lpips", "torchvision"):
+        if importlib.util.find_spec(module) is None:
+            return LpipsResult(None, f"the '{module}' package is not installed")
+    if _lpips_weights_present(net) is None:
+        return LpipsResult(
+            None, f"{net} backbone weights are not in the torch cache (no download at run time)"
+        )
+    import lpips as lpips_package
+
+    model = lpips_package.LPIPS(net=net, verbose=False, pretrained=True).eval()
+    a, b = as_image_tensor(rendered).float(), as_image_tensor(target).float()
+    _check_pair(a, b)
+    with torch.no_grad():
+        return LpipsResult(float(model(a * 2 - 1, b * 2 - 1).mean()))
