@@ -1,0 +1,13 @@
+"""Differentiable triangle rasteriser (Triangle Splatting / TS+ windows).
+
+Stages: :mod:`~splat.raster.project` (per-triangle set-up, autograd) →
+:mod:`~splat.raster.binning` (16x16 tiles) → a rasteriser backend: the pure-PyTorch
+:mod:`~splat.raster.reference`, or a compiled kernel (``csrc/``, CPU or CUDA) via
+:mod:`~splat.raster.kernel`. :func:`render` runs them all.
+"""
+
+from splat.raster.extension import BackendUnavailableError
+from splat.raster.render import RenderOutput, render
+from splat.raster.stats import ErrorStats
+
+__all__ = ["BackendUnavailableError", "ErrorStats", "RenderOutput", "render"]

@@ -1,0 +1,306 @@
+// CPU rasteriser: tile-major loops (per 16x16 tile, triangles in depth order outside, the pixels of
+// each triangle's span inside, per-tile pixel state in small arrays). This order keeps the tile's
+// state in L1 and reads each triangle once per tile; it is ~2x faster than a per-pixel loop.
+// Gradients are written per (tile, triangle) slot and summed per triangle in a fixed order, so
+// results are deterministic without atomics.
+#include <torch/extension.h>
+
+#include <ATen/Parallel.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <vector>
+
+#include "triangle_math.h"
+
+namespace {
+
+using namespace lts;
+
+// Tile lists built by splat/raster/binning.py.
+struct Bins {
+  const int64_t* tile_offsets;  // (n_tiles + 1,) start of each tile's entries
+  const int32_t* tile_slots;    // (n_slots,) slot of each entry, depth order inside a tile
+  const int32_t* slot_tri;      // (n_slots,) sorted triangle of each slot
+  const int64_t* tri_offsets;   // (n_triangles + 1,) slots of a triangle are contiguous
+  const int32_t* bounds;        // (n_triangles, 4) inclusive pixel box x0, y0, x1, y1
+  int width, height, tiles_x, n_tiles;
+};
+
+Bins make_bins(const torch::Tensor& bounds, const torch::Tensor& tile_offsets,
+               const torch::Tensor& tile_slots, const torch::Tensor& slot_tri,
+               const torch::Tensor& tri_offsets, int64_t width, int64_t height) {
+  const int tiles_x = static_cast<int>((width + kTile - 1) / kTile);
+  const int tiles_y = static_cast<int>((height + kTile - 1) / kTile);
+  TORCH_CHECK(tile_offsets.numel() == tiles_x * tiles_y + 1, "tile_offsets has the wrong size");
+  return {tile_offsets.data_ptr<int64_t>(), tile_slots.data_ptr<int32_t>(),
+          slot_tri.data_ptr<int32_t>(),     tri_offsets.data_ptr<int64_t>(),
+          bounds.data_ptr<int32_t>(),       static_cast<int>(width),
+          static_cast<int>(height),         tiles_x,
+          tiles_x * tiles_y};
+}
+
+// Runs fn(tile) for every tile; threads take tiles from a shared counter because tiles cost very
+// different amounts. Each tile's result does not depend on the thread that computes it.
+template <typename F>
+void for_each_tile(int n_tiles, const F& fn) {
+  std::atomic<int> next{0};
+  const int n_threads = std::max(1, std::min<int>(at::get_num_threads(), n_tiles));
+  at::parallel_for(0, n_threads, 1, [&](int64_t, int64_t) {
+    for (int t = next++; t < n_tiles; t = next++) fn(t);
+  });
+}
+
+// Pixel box of a triangle inside a tile; false if empty.
+struct Box {
+  int x0, y0, x1, y1;
+};
+
+inline bool pair_box(const Bins& b, int k, int tx0, int ty0, Box& box) {
+  const int32_t* bd = b.bounds + 4 * static_cast<int64_t>(k);
+  box.x0 = std::max<int>(bd[0], tx0);
+  box.y0 = std::max<int>(bd[1], ty0);
+  box.x1 = std::min<int>(bd[2], std::min(tx0 + kTile, b.width) - 1);
+  box.y1 = std::min<int>(bd[3], std::min(ty0 + kTile, b.height) - 1);
+  return box.x0 <= box.x1 && box.y0 <= box.y1;
+}
+
+// Narrows [x0, x1] to the pixels of row y where every edge function can reach the support
+// threshold (padded by a pixel: the exact test is per pixel). False if the row is empty.
+template <typename T>
+bool row_span(const T* p, T y, int& x0, int& x1) {
+  T lo = T(x0), hi = T(x1);
+  for (int j = 0; j < 3; ++j) {
+    const T a = p[kLine + 3 * j];
+    const T rest = p[kParams - 1] - (p[kLine + 3 * j + 1] * y + p[kLine + 3 * j + 2]);
+    if (a > T(0)) {
+      lo = std::max(lo, rest / a - T(1));
+    } else if (a < T(0)) {
+      hi = std::min(hi, rest / a + T(1));
+    }
+  }
+  if (!(lo <= hi)) return false;
+  x0 = static_cast<int>(std::ceil(lo));
+  x1 = static_cast<int>(std::floor(hi));
+  return x0 <= x1;
+}
+
+// Calls fn(x, y, pixel_index_in_tile, window) for every contributing pixel of a (tile, triangle)
+// pair.
+template <typename T, typename F>
+void for_each_pixel(const T* p, const Box& box, int tx0, int ty0, const F& fn) {
+  for (int y = box.y0; y <= box.y1; ++y) {
+    int x0 = box.x0, x1 = box.x1;
+    if (!row_span(p, T(y), x0, x1)) continue;
+    for (int x = x0; x <= x1; ++x) {
+      Window<T> w;
+      if (eval_window(p, T(x), T(y), w)) fn(T(x), T(y), (y - ty0) * kTile + (x - tx0), w);
+    }
+  }
+}
+
+template <typename T>
+void forward_tile(int tile, const Bins& b, const T* params, T* rgb, T* depth, T* alpha, T* normal,
+                  T* median, T* distortion, int64_t* dominant, T* transmittance,
+                  int32_t* last_entry, int32_t* median_entry, T* slot_max_weight) {
+  const int tx0 = (tile % b.tiles_x) * kTile, ty0 = (tile / b.tiles_x) * kTile;
+  const int tw = std::min(kTile, b.width - tx0), th = std::min(kTile, b.height - ty0);
+  PixelState<T> px[kTilePixels];
+  for (auto& s : px) s.reset();
+  int active = tw * th;
+  for (int64_t e = b.tile_offsets[tile]; e < b.tile_offsets[tile + 1] && active > 0; ++e) {
+    const int32_t slot = b.tile_slots[e];
+    const int k = b.slot_tri[slot];
+    Box box;
+    if (!pair_box(b, k, tx0, ty0, box)) continue;
+    const T* p = params + static_cast<int64_t>(k) * kParams;
+    T max_weight = T(0);
+    for_each_pixel(p, box, tx0, ty0, [&](T, T, int i, const Window<T>& w) {
+      PixelState<T>& s = px[i];
+      if (s.done) return;
+      const T weight = s.blend(p, w, static_cast<int>(e), k);
+      if (weight < T(0)) {
+        --active;
+      } else {
+        max_weight = std::max(max_weight, weight);
+      }
+    });
+    slot_max_weight[slot] = max_weight;
+  }
+  for (int y = 0; y < th; ++y) {
+    for (int x = 0; x < tw; ++x) {
+      const PixelState<T>& s = px[y * kTile + x];
+      const int64_t o = static_cast<int64_t>(ty0 + y) * b.width + (tx0 + x);
+      for (int c = 0; c < 3; ++c) {
+        rgb[3 * o + c] = s.rgb[c];
+        normal[3 * o + c] = s.normal[c];
+      }
+      depth[o] = s.depth_sum;
+      alpha[o] = s.weight_sum;
+      median[o] = s.median;
+      distortion[o] = s.weight_sum * s.depth_m2;
+      dominant[o] = s.best;
+      transmittance[o] = s.transmittance;
+      last_entry[o] = s.last_entry;
+      median_entry[o] = s.median_entry;
+    }
+  }
+}
+
+template <typename T>
+void backward_tile(int tile, const Bins& b, const T* params, const T* alpha, const T* depth,
+                   const T* distortion, const T* transmittance, const int32_t* last_entry,
+                   const int32_t* median_entry, const T* d_rgb, const T* d_depth,
+                   const T* d_alpha, const T* d_normal, const T* d_median,
+                   const T* d_distortion, T* slot_grads) {
+  const int tx0 = (tile % b.tiles_x) * kTile, ty0 = (tile / b.tiles_x) * kTile;
+  const int tw = std::min(kTile, b.width - tx0), th = std::min(kTile, b.height - ty0);
+  PixelGrad<T> px[kTilePixels];
+  int last = -1;
+  for (int y = 0; y < kTile; ++y) {
+    for (int x = 0; x < kTile; ++x) {
+      PixelGrad<T>& g = px[y * kTile + x];
+      if (y >= th || x >= tw) {
+        g.last_entry = -1;
+        continue;
+      }
+      const int64_t o = static_cast<int64_t>(ty0 + y) * b.width + (tx0 + x);
+      for (int c = 0; c < 3; ++c) {
+        g.d_rgb[c] = d_rgb[3 * o + c];
+        g.d_normal[c] = d_normal[3 * o + c];
+      }
+      g.d_depth = d_depth[o];
+      g.d_alpha = d_alpha[o];
+      g.d_median = d_median[o];
+      g.d_distortion = d_distortion[o];
+      g.weight_sum = alpha[o];
+      const bool hit = alpha[o] > T(0);
+      g.depth_mean = hit ? depth[o] / alpha[o] : T(0);
+      g.depth_m2 = hit ? distortion[o] / alpha[o] : T(0);
+      g.transmittance = transmittance[o];
+      g.suffix = T(0);
+      g.median_entry = median_entry[o];
+      g.last_entry = last_entry[o];
+      last = std::max(last, g.last_entry);
+    }
+  }
+  for (int64_t e = b.tile_offsets[tile + 1] - 1; e >= b.tile_offsets[tile]; --e) {
+    const int32_t slot = b.tile_slots[e];
+    T* g = slot_grads + static_cast<int64_t>(slot) * kGrads;
+    std::fill(g, g + kGrads, T(0));
+    const int k = b.slot_tri[slot];
+    Box box;
+    if (e > last || !pair_box(b, k, tx0, ty0, box)) continue;
+    const T* p = params + static_cast<int64_t>(k) * kParams;
+    for_each_pixel(p, box, tx0, ty0, [&](T x, T y, int i, const Window<T>& w) {
+      if (e <= px[i].last_entry) px[i].unblend(p, x, y, w, static_cast<int>(e), g);
+    });
+  }
+}
+
+void check_bins(const torch::Tensor& params, const torch::Tensor& bounds,
+                const torch::Tensor& tile_offsets, const torch::Tensor& tile_slots,
+                const torch::Tensor& slot_tri, const torch::Tensor& tri_offsets) {
+  TORCH_CHECK(params.device().is_cpu() && params.is_contiguous() && params.dim() == 2 &&
+                  params.size(1) == kParams,
+              "params must be a contiguous CPU (K, ", kParams, ") tensor");
+  TORCH_CHECK(bounds.scalar_type() == torch::kInt32 && bounds.is_contiguous(), "bounds: int32");
+  TORCH_CHECK(tile_offsets.scalar_type() == torch::kInt64, "tile_offsets: int64");
+  TORCH_CHECK(tri_offsets.scalar_type() == torch::kInt64, "tri_offsets: int64");
+  TORCH_CHECK(tile_slots.scalar_type() == torch::kInt32 && slot_tri.scalar_type() == torch::kInt32,
+              "tile_slots, slot_tri: int32");
+}
+
+std::vector<torch::Tensor> forward(const torch::Tensor& params, const torch::Tensor& bounds,
+                                   const torch::Tensor& tile_offsets,
+                                   const torch::Tensor& tile_slots, const torch::Tensor& slot_tri,
+                                   const torch::Tensor& tri_offsets, int64_t width,
+                                   int64_t height) {
+  check_bins(params, bounds, tile_offsets, tile_slots, slot_tri, tri_offsets);
+  const Bins b = make_bins(bounds, tile_offsets, tile_slots, slot_tri, tri_offsets, width, height);
+  const auto f = params.options();
+  const auto i32 = f.dtype(torch::kInt32);
+  auto rgb = torch::empty({height, width, 3}, f), normal = torch::empty({height, width, 3}, f);
+  auto depth = torch::empty({height, width}, f), alpha = torch::empty({height, width}, f);
+  auto median = torch::empty({height, width}, f), distortion = torch::empty({height, width}, f);
+  auto transmittance = torch::empty({height, width}, f);
+  auto dominant = torch::empty({height, width}, f.dtype(torch::kInt64));
+  auto last_entry = torch::empty({height, width}, i32);
+  auto median_entry = torch::empty({height, width}, i32);
+  auto slot_max_weight = torch::zeros({tile_slots.numel()}, f);
+  const int64_t n_tri = params.size(0);
+  auto max_weight = torch::empty({n_tri}, f);
+  AT_DISPATCH_FLOATING_TYPES(params.scalar_type(), "lts_raster_forward", [&] {
+    const scalar_t* p = params.data_ptr<scalar_t>();
+    for_each_tile(b.n_tiles, [&](int t) {
+      forward_tile<scalar_t>(t, b, p, rgb.data_ptr<scalar_t>(), depth.data_ptr<scalar_t>(),
+                             alpha.data_ptr<scalar_t>(), normal.data_ptr<scalar_t>(),
+                             median.data_ptr<scalar_t>(), distortion.data_ptr<scalar_t>(),
+                             dominant.data_ptr<int64_t>(), transmittance.data_ptr<scalar_t>(),
+                             last_entry.data_ptr<int32_t>(), median_entry.data_ptr<int32_t>(),
+                             slot_max_weight.data_ptr<scalar_t>());
+    });
+    const scalar_t* sw = slot_max_weight.data_ptr<scalar_t>();
+    scalar_t* mw = max_weight.data_ptr<scalar_t>();
+    at::parallel_for(0, n_tri, 1024, [&](int64_t k0, int64_t k1) {
+      for (int64_t k = k0; k < k1; ++k) {
+        scalar_t m = scalar_t(0);
+        for (int64_t s = b.tri_offsets[k]; s < b.tri_offsets[k + 1]; ++s) m = std::max(m, sw[s]);
+        mw[k] = m;
+      }
+    });
+  });
+  return {rgb,        depth,         alpha,      normal,      median,      distortion,
+          dominant,   max_weight,    transmittance, last_entry, median_entry};
+}
+
+torch::Tensor backward(const torch::Tensor& params, const torch::Tensor& bounds,
+                       const torch::Tensor& tile_offsets, const torch::Tensor& tile_slots,
+                       const torch::Tensor& slot_tri, const torch::Tensor& tri_offsets,
+                       int64_t width, int64_t height, const torch::Tensor& alpha,
+                       const torch::Tensor& depth, const torch::Tensor& distortion,
+                       const torch::Tensor& transmittance, const torch::Tensor& last_entry,
+                       const torch::Tensor& median_entry, const torch::Tensor& d_rgb,
+                       const torch::Tensor& d_depth, const torch::Tensor& d_alpha,
+                       const torch::Tensor& d_normal, const torch::Tensor& d_median,
+                       const torch::Tensor& d_distortion) {
+  check_bins(params, bounds, tile_offsets, tile_slots, slot_tri, tri_offsets);
+  for (const auto* t : {&d_rgb, &d_depth, &d_alpha, &d_normal, &d_median, &d_distortion}) {
+    TORCH_CHECK(t->is_contiguous() && t->scalar_type() == params.scalar_type(),
+                "upstream gradients must be contiguous and of the parameters' dtype");
+  }
+  const Bins b = make_bins(bounds, tile_offsets, tile_slots, slot_tri, tri_offsets, width, height);
+  const int64_t n_tri = params.size(0);
+  auto slot_grads = torch::empty({tile_slots.numel(), kGrads}, params.options());
+  auto d_params = torch::zeros({n_tri, kParams}, params.options());
+  AT_DISPATCH_FLOATING_TYPES(params.scalar_type(), "lts_raster_backward", [&] {
+    const scalar_t* p = params.data_ptr<scalar_t>();
+    scalar_t* sg = slot_grads.data_ptr<scalar_t>();
+    for_each_tile(b.n_tiles, [&](int t) {
+      backward_tile<scalar_t>(
+          t, b, p, alpha.data_ptr<scalar_t>(), depth.data_ptr<scalar_t>(),
+          distortion.data_ptr<scalar_t>(), transmittance.data_ptr<scalar_t>(),
+          last_entry.data_ptr<int32_t>(), median_entry.data_ptr<int32_t>(),
+          d_rgb.data_ptr<scalar_t>(), d_depth.data_ptr<scalar_t>(), d_alpha.data_ptr<scalar_t>(),
+          d_normal.data_ptr<scalar_t>(), d_median.data_ptr<scalar_t>(),
+          d_distortion.data_ptr<scalar_t>(), sg);
+    });
+    scalar_t* dp = d_params.data_ptr<scalar_t>();
+    at::parallel_for(0, n_tri, 1024, [&](int64_t k0, int64_t k1) {
+      for (int64_t k = k0; k < k1; ++k) {
+        for (int64_t s = b.tri_offsets[k]; s < b.tri_offsets[k + 1]; ++s) {
+          for (int i = 0; i < kGrads; ++i) dp[k * kParams + i] += sg[s * kGrads + i];
+        }
+      }
+    });
+  });
+  return d_params;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
+  m.def("forward", &forward, "triangle rasteriser forward (CPU)");
+  m.def("backward", &backward, "triangle rasteriser backward (CPU)");
+}

@@ -1,0 +1,109 @@
+"""Build (once, cached) and load the compiled rasteriser extensions."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import platform
+import shutil
+import sysconfig
+from functools import cache
+from pathlib import Path
+from types import ModuleType
+
+CSRC = Path(__file__).parent / "csrc"
+HEADER = CSRC / "triangle_math.h"
+# -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
+# kernel's skip/stop decisions match the reference exactly.
+CPU_FLAGS = ["-O3", "-march=native", "-ffp-contract=off", "-std=c++17"]
+CUDA_FLAGS = ["-O3", "--use_fast_math", "-std=c++17"]
+
+
+class BackendUnavailableError(RuntimeError):
+    """A compiled backend cannot be built or loaded here; the message says what is missing."""
+
+
+def cache_root() -> Path:
+    """Where built extensions live (``$LTS_CACHE_DIR`` or ``~/.cache/lidar-ts``)."""
+    return Path(os.environ.get("LTS_CACHE_DIR", Path.home() / ".cache" / "lidar-ts")) / "extensions"
+
+
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith(("model name", "flags")):
+                return line
+    except OSError:
+        pass
+    return platform.processor()
+
+
+def _missing_toolchain(cuda: bool) -> list[str]:
+    import torch.utils.cpp_extension as cpp
+
+    missing = []
+    compiler = os.environ.get("CXX", "c++")
+    if shutil.which(compiler) is None:
+        missing.append(f"a C++ compiler ({compiler!r} not on PATH; install g++ or set CXX)")
+    if not cpp.is_ninja_available():
+        missing.append("ninja (pip install ninja)")
+    if not (Path(sysconfig.get_paths()["include"]) / "Python.h").exists():
+        missing.append("the Python development headers (Python.h; e.g. apt install python3.11-dev)")
+    if cuda:
+        import torch
+
+        if torch.version.cuda is None:
+            missing.append("a CUDA build of PyTorch (this one is CPU-only)")
+        if cpp.CUDA_HOME is None:
+            missing.append("the CUDA toolkit (nvcc; set CUDA_HOME)")
+    return missing
+
+
+def _load(target: str, sources: list[Path], cuda: bool) -> ModuleType:
+    import torch
+    import torch.utils.cpp_extension as cpp
+
+    from rig.cli_support import console
+
+    flags = CPU_FLAGS + (CUDA_FLAGS if cuda else [])
+    digest = hashlib.sha256()
+    for part in [HEADER, *sources]:
+        digest.update(part.read_bytes())
+    digest.update(" ".join([*flags, torch.__version__, platform.python_version(), _cpu_model()]).encode())
+    name = f"lts_raster_{target}_{digest.hexdigest()[:12]}"
+    build_dir = cache_root() / name
+    if not (build_dir / f"{name}.so").exists():
+        missing = _missing_toolchain(cuda)
+        if missing:
+            raise BackendUnavailableError(
+                f"cannot build the {target.upper()} rasteriser: missing {'; '.join(missing)}. "
+                "Use backend='reference' for the (slow) pure-PyTorch rasteriser."
+            )
+        console.print(f"compiling the {target.upper()} rasteriser, once, ~30 s", highlight=False)
+    build_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        return cpp.load(
+            name=name,
+            sources=[str(s) for s in sources],
+            extra_cflags=CPU_FLAGS,
+            extra_cuda_cflags=CUDA_FLAGS if cuda else None,
+            extra_include_paths=[str(CSRC)],
+            build_directory=str(build_dir),
+            verbose=False,
+        )
+    except (RuntimeError, OSError, ImportError) as exc:
+        raise BackendUnavailableError(
+            f"building the {target.upper()} rasteriser in {build_dir} failed: {exc}"
+        ) from exc
+
+
+@cache
+def cpu_extension() -> ModuleType:
+    """The C++/OpenMP rasteriser (compiled on first use)."""
+    return _load("cpu", [CSRC / "raster_cpu.cpp"], cuda=False)
+
+
+@cache
+def cuda_extension() -> ModuleType:
+    """The CUDA rasteriser (compiled on first use; needs a CUDA build of PyTorch and nvcc)."""
+    return _load("cuda", [CSRC / "raster_cuda.cu"], cuda=True)

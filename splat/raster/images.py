@@ -1,0 +1,27 @@
+"""What a rasteriser backend returns (before mapping triangle ids back to the caller's faces)."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from torch import Tensor
+
+
+class RasterImages(NamedTuple):
+    """Per-pixel and per-triangle outputs of one backend; ``H, W`` image size, ``K`` triangles.
+
+    rgb ``(H, W, 3)`` (premultiplied, black background), depth ``(H, W)`` = sum w z,
+    alpha ``(H, W)`` = sum w, normal ``(H, W, 3)`` = sum w n, median ``(H, W)`` depth where the
+    transmittance crosses 0.5 (0 if it never does... see :mod:`splat.raster.reference`),
+    distortion ``(H, W)`` 2DGS depth distortion, dominant ``(H, W)`` int64 row of the sorted
+    triangles with the largest weight (-1 if none), max_weight ``(K,)`` largest weight per row.
+    """
+
+    rgb: Tensor
+    depth: Tensor
+    alpha: Tensor
+    normal: Tensor
+    median: Tensor
+    distortion: Tensor
+    dominant: Tensor
+    max_weight: Tensor
