@@ -1,4 +1,35 @@
-"""eval: photometric and geometric metrics, leaned views, physics collision test, reports, benchmarks.
+"""eval: photometric and geometric metrics, physics collision test (and, to come, leaned views,
+reports and benchmarks).
 
-The offline ``lts`` command line is mounted in :mod:`eval.cli`.
+The offline ``lts`` command line is mounted in :mod:`eval.cli`. Names are imported on first use
+(PEP 562) so that ``lts --help``, which imports this package, does not load torch.
 """
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_EXPORTS = {
+    "GeometricMetrics": "eval.geometry",
+    "compare_meshes": "eval.geometry",
+    "compare_point_sets": "eval.geometry",
+    "frustum_mask": "eval.geometry",
+    "sample_surface": "eval.geometry",
+    "LpipsResult": "eval.photometric",
+    "lpips": "eval.photometric",
+    "psnr": "eval.photometric",
+    "ssim": "eval.photometric",
+    "CollisionComparison": "eval.physics",
+    "DropResult": "eval.physics",
+    "compare_drops": "eval.physics",
+    "drop_probes": "eval.physics",
+    "footprint_grid": "eval.physics",
+}
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'eval' has no attribute {name!r}")
+    return getattr(importlib.import_module(_EXPORTS[name]), name)

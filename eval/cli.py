@@ -13,6 +13,7 @@ import typer
 from eval.mesh_eval_cli import eval_command
 from rig import trajectory_cli
 from rig.cli_support import run_app, version_callback
+from slam_bridge import cli as slam_cli
 
 app = typer.Typer(
     name="lts",
@@ -26,6 +27,7 @@ app = typer.Typer(
 )
 app.add_typer(trajectory_cli.app, name="trajectory")
 app.command("eval")(eval_command)
+app.add_typer(slam_cli.app, name="slam")
 
 
 @app.callback()

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -37,28 +36,6 @@ class GeometricMetrics:
 
     def to_dict(self) -> dict[str, float]:
         return asdict(self)
-
-
-def load_mesh(path: str | Path) -> trimesh.Trimesh:
-    """Load a triangle mesh (PLY/OBJ/GLB/...) with clear errors for missing, empty or NaN data."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("no such mesh file", path=path)
-    try:
-        mesh = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many types for corrupt files
-        raise InputError(f"cannot read mesh ({type(exc).__name__}: {exc})", path=path) from None
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise InputError("mesh has no faces", path=path, field="face")
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise InputError("mesh vertices hold NaN or Inf", path=path, field="vertex")
-    if mesh.faces.max() >= len(mesh.vertices) or mesh.faces.min() < 0:
-        raise InputError(
-            f"faces index vertex {int(mesh.faces.max())} but the mesh has {len(mesh.vertices)} vertices",
-            path=path,
-            field="face",
-        )
-    return mesh
 
 
 def sample_surface(mesh: trimesh.Trimesh, count: int = DEFAULT_SAMPLES, seed: int = 0) -> np.ndarray:

@@ -18,7 +18,8 @@ def eval_command(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Compare a mesh with ground truth: Chamfer-L1 and precision/recall/F-score (no culling)."""
-    from eval.geometry import compare_meshes, load_mesh
+    from eval.geometry import compare_meshes
+    from rig.mesh_io import load_mesh
 
     metrics = compare_meshes(load_mesh(mesh), load_mesh(gt), threshold, samples, seed)
     if json_out:

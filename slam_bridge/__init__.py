@@ -1,1 +1,21 @@
-"""slam_bridge: mesh-SLAM imports (ImMesh and others), the fallback mapper, the keyframe scene builder."""
+"""slam_bridge: mesh-SLAM imports (ImMesh and others), the fallback mapper, the keyframe scene builder.
+
+Every import writes the same SLAM folder (:mod:`slam_bridge.slam_dir`): ``mesh.ply`` (binary PLY,
+world frame) and ``trajectory.tum`` (``T_world_lidar``).
+"""
+
+from slam_bridge.generic import import_generic
+from slam_bridge.immesh import T_LC, import_immesh, read_immesh_log
+from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
+from slam_bridge.slam_dir import load_slam_dir, write_slam_dir
+
+__all__ = [
+    "T_LC",
+    "CleanupReport",
+    "clean_mesh",
+    "import_generic",
+    "import_immesh",
+    "load_slam_dir",
+    "read_immesh_log",
+    "write_slam_dir",
+]

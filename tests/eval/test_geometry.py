@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from eval.geometry import compare_meshes, compare_point_sets, frustum_mask, load_mesh
+from eval.geometry import compare_meshes, compare_point_sets, frustum_mask
 from rig import CameraModel, InputError, make_transform
 
 
@@ -54,19 +54,6 @@ def test_frustum_culling_keeps_what_a_camera_sees() -> None:
     assert mask.sum() > 1000
     assert (mask == expected).mean() > 0.995  # disagreements only at the frustum's edge pixels
     assert not mask[x < 0].any()  # nothing behind the camera
-
-
-def test_load_mesh_errors(tmp_path: Path) -> None:
-    with pytest.raises(InputError, match="no such mesh file"):
-        load_mesh(tmp_path / "missing.ply")
-    empty = tmp_path / "points.ply"
-    trimesh.PointCloud(np.random.default_rng(0).normal(size=(10, 3))).export(empty)
-    with pytest.raises(InputError, match="no faces"):
-        load_mesh(empty)
-    garbage = tmp_path / "garbage.ply"
-    garbage.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nend_header\n\x00\x01")
-    with pytest.raises(InputError):
-        load_mesh(garbage)
 
 
 def test_lts_eval_mesh_json(tmp_path: Path) -> None:
