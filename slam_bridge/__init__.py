@@ -4,6 +4,7 @@ Every import writes the same SLAM folder (:mod:`slam_bridge.slam_dir`): ``mesh.p
 world frame) and ``trajectory.tum`` (``T_world_lidar``).
 """
 
+from slam_bridge.depth_image import lidar_depth_image, remove_occluded, zbuffer_depth
 from slam_bridge.generic import import_generic
 from slam_bridge.immesh import T_LC, import_immesh, read_immesh_log
 from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
@@ -14,8 +15,11 @@ __all__ = [
     "CleanupReport",
     "clean_mesh",
     "import_generic",
+    "lidar_depth_image",
     "import_immesh",
     "load_slam_dir",
     "read_immesh_log",
+    "remove_occluded",
     "write_slam_dir",
+    "zbuffer_depth",
 ]

@@ -1,0 +1,58 @@
+"""Sparse LiDAR depth images: project points into a camera, z-buffer them, and remove points
+that the camera cannot see although the LiDAR could (the baseline between the sensors lets
+background points "shine through" gaps beside foreground objects)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import minimum_filter
+
+from rig.camera import CameraModel
+from rig.transforms import transform_points
+
+
+def zbuffer_depth(points_cam: np.ndarray, camera: CameraModel, near_m: float = 0.05) -> np.ndarray:
+    """Depth image ``(H, W)`` float32 (z in metres, 0 = no return) of camera-frame points ``(N, 3)``.
+
+    Each point lands on the pixel nearest its projection; the nearest point wins.
+    """
+    points = np.asarray(points_cam, dtype=np.float64)
+    front = points[:, 2] > near_m
+    points = points[front]
+    pixels = camera.project(points)
+    inside = camera.in_image(pixels)
+    cols = np.round(pixels[inside, 0]).astype(np.int64)
+    rows = np.round(pixels[inside, 1]).astype(np.int64)
+    depth = np.full(camera.height * camera.width, np.inf)
+    np.minimum.at(depth, rows * camera.width + cols, points[inside, 2])
+    depth[~np.isfinite(depth)] = 0.0
+    return depth.reshape(camera.height, camera.width).astype(np.float32)
+
+
+def remove_occluded(
+    depth: np.ndarray, window_px: int = 7, relative: float = 0.1, absolute_m: float = 0.1
+) -> np.ndarray:
+    """Drop returns ``(H, W)`` that lie clearly behind a nearer return within a ``window_px`` window.
+
+    A return at depth ``d`` is kept when ``d <= d_min + max(absolute_m, relative * d_min)``, with
+    ``d_min`` the nearest return in its window: sparse LiDAR leaves gaps through which farther
+    surfaces appear beside a foreground object, and this local min-depth test removes them.
+    """
+    valid = depth > 0
+    nearest = minimum_filter(np.where(valid, depth, np.inf), size=window_px, mode="nearest")
+    keep = valid & (depth <= nearest + np.maximum(absolute_m, relative * nearest))
+    return np.where(keep, depth, 0.0).astype(np.float32)
+
+
+def lidar_depth_image(
+    points_lidar: np.ndarray,
+    T_cam_lidar: np.ndarray,
+    camera: CameraModel,
+    occlusion_window_px: int | None = 7,
+) -> np.ndarray:
+    """Depth image ``(H, W)`` float32 of LiDAR points ``(N, 3)`` seen by ``camera`` at ``T_cam_lidar``
+    ``(4, 4)``; ``occlusion_window_px=None`` skips the see-through removal."""
+    depth = zbuffer_depth(transform_points(T_cam_lidar, points_lidar), camera)
+    if occlusion_window_px:
+        depth = remove_occluded(depth, occlusion_window_px)
+    return depth
