@@ -13,13 +13,13 @@ from splat.raster.images import RasterImages
 
 class _Rasterize(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, params: Tensor, bounds: Tensor, bins: TileBins, width: int, height: int, ext: ModuleType):
+    def forward(
+        ctx, params: Tensor, bounds: Tensor, bins: TileBins, width: int, height: int, ext: ModuleType
+    ):
         geometry = (bounds, bins.tile_offsets, bins.tile_slots, bins.slot_tri, bins.tri_offsets)
         (rgb, depth, alpha, normal, median, distortion, dominant, max_weight, transmittance, last,
          median_entry) = ext.forward(params, *geometry, width, height)  # fmt: skip
-        ctx.save_for_backward(
-            params, *geometry, alpha, depth, distortion, transmittance, last, median_entry
-        )
+        ctx.save_for_backward(params, *geometry, alpha, depth, distortion, transmittance, last, median_entry)
         ctx.size, ctx.ext = (width, height), ext
         ctx.mark_non_differentiable(dominant, max_weight)
         return rgb, depth, alpha, normal, median, distortion, dominant, max_weight

@@ -51,9 +51,7 @@ class ProjectedTriangles:
     index: Tensor
 
 
-def _visible(
-    tri_cam: Tensor, opacity: Tensor, sigma: Tensor, intr: Intrinsics, near: float
-) -> Tensor:
+def _visible(tri_cam: Tensor, opacity: Tensor, sigma: Tensor, intr: Intrinsics, near: float) -> Tensor:
     """``(F,)`` bool: in front of the near plane, not edge-on, not tiny, possibly visible."""
     z = tri_cam[..., 2]
     in_front = (z > near).all(dim=1)

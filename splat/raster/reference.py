@@ -100,7 +100,9 @@ def rasterize_reference(params: Tensor, bins: TileBins, width: int, height: int)
     max_weight = torch.zeros(len(params), dtype=params.dtype, device=params.device)
     while start < n_tiles:
         stop, widest = start + 1, max(counts[start], 1)
-        while stop < n_tiles and (stop - start + 1) * TILE * TILE * max(widest, counts[stop]) <= CHUNK_ELEMENTS:
+        while (
+            stop < n_tiles and (stop - start + 1) * TILE * TILE * max(widest, counts[stop]) <= CHUNK_ELEMENTS
+        ):
             widest = max(widest, counts[stop])
             stop += 1
         *images, tri, w_max = _rasterize_tiles(

@@ -76,7 +76,9 @@ def _select_backend(backend: Backend, device: torch.device) -> str:
     if backend in ("cpu", "cuda") and device.type != backend:
         raise InputError(f"backend {backend!r} needs {backend} tensors, got {device.type}", field="backend")
     if backend not in ("cpu", "cuda", "reference"):
-        raise InputError(f"unknown backend {backend!r}; expected auto, cpu, cuda or reference", field="backend")
+        raise InputError(
+            f"unknown backend {backend!r}; expected auto, cpu, cuda or reference", field="backend"
+        )
     return backend
 
 

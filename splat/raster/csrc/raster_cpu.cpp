@@ -87,15 +87,21 @@ bool row_span(const T* p, T y, int& x0, int& x1) {
 }
 
 // Calls fn(x, y, pixel_index_in_tile, window) for every contributing pixel of a (tile, triangle)
-// pair.
+// pair among the live ones (bit x of live[y] set for tile pixel (x, y)).
 template <typename T, typename F>
-void for_each_pixel(const T* p, const Box& box, int tx0, int ty0, const F& fn) {
+void for_each_pixel(const T* p, const Box& box, int tx0, int ty0, const uint32_t* live,
+                    const F& fn) {
   for (int y = box.y0; y <= box.y1; ++y) {
+    uint32_t bits = live[y - ty0];
+    if (bits == 0) continue;
     int x0 = box.x0, x1 = box.x1;
     if (!row_span(p, T(y), x0, x1)) continue;
-    for (int x = x0; x <= x1; ++x) {
+    bits &= (2u << (x1 - tx0)) - (1u << (x0 - tx0));
+    while (bits != 0) {
+      const int lx = __builtin_ctz(bits);
+      bits &= bits - 1;
       Window<T> w;
-      if (eval_window(p, T(x), T(y), w)) fn(T(x), T(y), (y - ty0) * kTile + (x - tx0), w);
+      if (eval_window(p, T(tx0 + lx), T(y), w)) fn(T(tx0 + lx), T(y), (y - ty0) * kTile + lx, w);
     }
   }
 }
@@ -108,19 +114,23 @@ void forward_tile(int tile, const Bins& b, const T* params, T* rgb, T* depth, T*
   const int tw = std::min(kTile, b.width - tx0), th = std::min(kTile, b.height - ty0);
   PixelState<T> px[kTilePixels];
   for (auto& s : px) s.reset();
+  uint32_t live[kTile];
+  for (int y = 0; y < kTile; ++y) live[y] = y < th ? (1u << tw) - 1 : 0u;
   int active = tw * th;
   for (int64_t e = b.tile_offsets[tile]; e < b.tile_offsets[tile + 1] && active > 0; ++e) {
     const int32_t slot = b.tile_slots[e];
     const int k = b.slot_tri[slot];
     Box box;
     if (!pair_box(b, k, tx0, ty0, box)) continue;
-    const T* p = params + static_cast<int64_t>(k) * kParams;
+    // Local copies: the compiler cannot keep parameters and accumulators in registers when they
+    // might alias the output arrays.
+    T p[kParams];
+    std::copy(params + static_cast<int64_t>(k) * kParams, params + (k + 1) * int64_t{kParams}, p);
     T max_weight = T(0);
-    for_each_pixel(p, box, tx0, ty0, [&](T, T, int i, const Window<T>& w) {
-      PixelState<T>& s = px[i];
-      if (s.done) return;
-      const T weight = s.blend(p, w, static_cast<int>(e), k);
+    for_each_pixel(p, box, tx0, ty0, live, [&](T, T, int i, const Window<T>& w) {
+      const T weight = px[i].blend(p, w, static_cast<int>(e), k);
       if (weight < T(0)) {
+        live[i / kTile] &= ~(1u << (i % kTile));
         --active;
       } else {
         max_weight = std::max(max_weight, weight);
@@ -157,7 +167,6 @@ void backward_tile(int tile, const Bins& b, const T* params, const T* alpha, con
   const int tx0 = (tile % b.tiles_x) * kTile, ty0 = (tile / b.tiles_x) * kTile;
   const int tw = std::min(kTile, b.width - tx0), th = std::min(kTile, b.height - ty0);
   PixelGrad<T> px[kTilePixels];
-  int last = -1;
   for (int y = 0; y < kTile; ++y) {
     for (int x = 0; x < kTile; ++x) {
       PixelGrad<T>& g = px[y * kTile + x];
@@ -182,20 +191,31 @@ void backward_tile(int tile, const Bins& b, const T* params, const T* alpha, con
       g.suffix = T(0);
       g.median_entry = median_entry[o];
       g.last_entry = last_entry[o];
-      last = std::max(last, g.last_entry);
     }
   }
+  // Pixels join the back-to-front sweep at their last composited entry: visit them in that order.
+  int order[kTilePixels];
+  for (int i = 0; i < kTilePixels; ++i) order[i] = i;
+  std::sort(order, order + kTilePixels,
+            [&](int a, int c) { return px[a].last_entry > px[c].last_entry; });
+  uint32_t live[kTile] = {};
+  int joined = 0;
   for (int64_t e = b.tile_offsets[tile + 1] - 1; e >= b.tile_offsets[tile]; --e) {
     const int32_t slot = b.tile_slots[e];
-    T* g = slot_grads + static_cast<int64_t>(slot) * kGrads;
-    std::fill(g, g + kGrads, T(0));
+    T g[kGrads] = {};
+    for (; joined < kTilePixels && px[order[joined]].last_entry >= e; ++joined) {
+      live[order[joined] / kTile] |= 1u << (order[joined] % kTile);
+    }
     const int k = b.slot_tri[slot];
     Box box;
-    if (e > last || !pair_box(b, k, tx0, ty0, box)) continue;
-    const T* p = params + static_cast<int64_t>(k) * kParams;
-    for_each_pixel(p, box, tx0, ty0, [&](T x, T y, int i, const Window<T>& w) {
-      if (e <= px[i].last_entry) px[i].unblend(p, x, y, w, static_cast<int>(e), g);
-    });
+    if (joined > 0 && pair_box(b, k, tx0, ty0, box)) {
+      T p[kParams];
+      std::copy(params + static_cast<int64_t>(k) * kParams, params + (k + 1) * int64_t{kParams}, p);
+      for_each_pixel(p, box, tx0, ty0, live, [&](T x, T y, int i, const Window<T>& w) {
+        px[i].unblend(p, x, y, w, static_cast<int>(e), g);
+      });
+    }
+    std::copy(g, g + kGrads, slot_grads + static_cast<int64_t>(slot) * kGrads);
   }
 }
 

@@ -29,8 +29,8 @@ constexpr int kParams = 27;
 constexpr int kGrads = 26;  // every parameter but the support threshold
 constexpr int kLine = 0, kColor = 9, kInvDepth = 18, kOpacity = 21, kSigma = 22, kNormal = 23;
 
-LTS_HD float power(float a, float b) { return powf(a, b); }
-LTS_HD double power(double a, double b) { return pow(a, b); }
+LTS_HD float exponential(float a) { return expf(a); }
+LTS_HD double exponential(double a) { return exp(a); }
 LTS_HD float logarithm(float a) { return logf(a); }
 LTS_HD double logarithm(double a) { return log(a); }
 
@@ -47,6 +47,7 @@ template <typename T>
 struct Window {
   T l[3];        // edge functions
   T m;           // min_j l_j (window ratio)
+  T log_m;       // log(m), reused by the sigma gradient
   int arg;       // index of the minimum (first one on ties)
   T intensity;   // I = m^sigma
   T alpha;       // min(alpha_max, o I)
@@ -64,7 +65,8 @@ LTS_HD bool eval_window(const T* p, T x, T y, Window<T>& w) {
   if (w.l[1] < w.m) { w.m = w.l[1]; w.arg = 1; }
   if (w.l[2] < w.m) { w.m = w.l[2]; w.arg = 2; }
   if (!(w.m > T(0))) return false;
-  w.intensity = power(w.m, p[kSigma]);
+  w.log_m = logarithm(w.m);
+  w.intensity = exponential(p[kSigma] * w.log_m);
   const T raw = p[kOpacity] * w.intensity;
   w.clamped = raw > Thresholds<T>::alpha_max;
   w.alpha = w.clamped ? Thresholds<T>::alpha_max : raw;
@@ -92,7 +94,7 @@ LTS_HD void pair_backward(const T* p, T x, T y, const Window<T>& w, T depth, T d
   if (!w.clamped) {
     g[kOpacity] += d_alpha * w.intensity;
     const T d_intensity = d_alpha * p[kOpacity];
-    g[kSigma] += d_intensity * w.intensity * logarithm(w.m);
+    g[kSigma] += d_intensity * w.intensity * w.log_m;
     d_l[w.arg] += d_intensity * p[kSigma] * w.intensity / w.m;
   }
   const T d_inv = -depth * depth * d_depth;
