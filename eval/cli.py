@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import typer
 
+from calib import cli as calib_cli
 from eval.mesh_eval_cli import eval_command
 from rig import trajectory_cli
 from rig.cli_support import run_app, version_callback
@@ -28,6 +29,7 @@ app = typer.Typer(
 app.add_typer(trajectory_cli.app, name="trajectory")
 app.command("eval")(eval_command)
 app.add_typer(slam_cli.app, name="slam")
+app.add_typer(calib_cli.app, name="calibrate")
 
 
 @app.callback()

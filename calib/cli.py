@@ -1,0 +1,162 @@
+"""``lts calibrate``: intrinsics, LiDAR–camera extrinsic, time offset, or all a session supports.
+
+``lts calibrate SESSION --out calib.yaml`` is routed to the ``session`` subcommand, so the
+contract's short form and the named subcommands live side by side.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+import typer
+from typer.core import TyperGroup
+
+from rig.cli_support import console, emit_json
+
+
+class _SessionDefaultGroup(TyperGroup):
+    """Treat ``lts calibrate PATH ...`` as ``lts calibrate session PATH ...``."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        if args and not args[0].startswith("-") and args[0] not in self.commands:
+            args = ["session", *args]
+        return super().parse_args(ctx, args)
+
+
+app = typer.Typer(
+    cls=_SessionDefaultGroup,
+    help="Calibrate: camera intrinsics, LiDAR-camera extrinsic, time offset (or SESSION: all it supports).",
+    no_args_is_help=True,
+)
+
+
+def _merge_into(out: Path, camera: Any = None, **updates: Any) -> Any:
+    """Load ``out`` if it exists (keeping what this step does not change), apply the updates."""
+    from rig.calibration import Calibration, load_calibration
+
+    base = load_calibration(out) if out.exists() else None
+    calibration = Calibration(camera if camera is not None else base.camera)
+    if base is not None:
+        calibration.T_cam_lidar, calibration.time_offset_s = base.T_cam_lidar, base.time_offset_s
+        calibration.quality = dict(base.quality)
+    quality = updates.pop("quality", {})
+    for name, value in updates.items():
+        setattr(calibration, name, value)
+    calibration.quality.update(quality)
+    return calibration
+
+
+@app.command("intrinsics")
+def intrinsics(
+    images: list[Path] = typer.Argument(..., help="Board photographs (PNG/JPEG)."),
+    out: Path = typer.Option(..., "--out", help="calib.yaml to write (its other blocks are kept)."),
+    board: str | None = typer.Option(
+        None, "--board", help="Chessboard inner corners COLSxROWS (searched when omitted)."
+    ),
+    square: float = typer.Option(1.0, "--square", help="Square side (m); scales only the board poses."),
+    charuco: str | None = typer.Option(
+        None, "--charuco", help="ChArUco board SQUARES_XxSQUARES_Y instead of a chessboard."
+    ),
+    marker: float = typer.Option(0.0, "--marker", help="ChArUco marker side (m); default 0.7 x square."),
+    dictionary: str = typer.Option("DICT_5X5_100", "--dictionary", help="ChArUco ArUco dictionary."),
+    model: str = typer.Option("pinhole", "--model", help="Camera model: pinhole or fisheye."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
+) -> None:
+    """Camera intrinsics from chessboard or ChArUco photographs."""
+    from calib.boards import CharucoTarget, ChessboardTarget, detect_views, parse_grid, read_gray
+    from calib.intrinsics import calibrate_intrinsics
+    from rig.calibration import save_calibration
+    from rig.errors import InputError
+
+    grays = [(str(p), read_gray(p)) for p in images]
+    sizes = {g.shape for _, g in grays}
+    if len(sizes) != 1:
+        raise InputError(f"images differ in size: {sorted(sizes)}", field="images")
+    target: ChessboardTarget | CharucoTarget | None = None
+    if charuco is not None:
+        sx, sy = parse_grid(charuco, "--charuco")
+        target = CharucoTarget(sx, sy, square, marker or 0.7 * square, dictionary)
+    elif board is not None:
+        target = ChessboardTarget(*parse_grid(board, "--board"), square)
+    views, target = detect_views(grays, target, square)
+    height, width = grays[0][1].shape
+    result = calibrate_intrinsics(views, width, height, model)  # type: ignore[arg-type]
+    save_calibration(_merge_into(out, camera=result.camera, quality=result.quality()), out)
+    summary = {**result.to_json(), "views_found": len(views), "images": len(images), "out": str(out)}
+    if isinstance(target, ChessboardTarget):
+        summary["board"] = f"{target.cols}x{target.rows}"
+    if json_out:
+        emit_json(summary)
+        return
+    console.print(
+        f"{model}: RMS {result.rms_px:.3f} px over {len(result.views_used)} views "
+        f"({len(result.views_rejected)} rejected, board found in {len(views)}/{len(images)}), "
+        f"fx {result.camera.fx:.2f} fy {result.camera.fy:.2f}, coverage {result.coverage:.0%}: "
+        f"{result.verdict}{'' if not result.reasons else ' (' + '; '.join(result.reasons) + ')'}"
+    )
+    console.print(f"wrote {out}")
+
+
+@app.command("extrinsic")
+def extrinsic(
+    image: list[Path] = typer.Option(..., "--image", help="Camera image (repeat for several pairs)."),
+    points: list[Path] = typer.Option(
+        ..., "--points", help="LiDAR cloud .pcd or KITTI .bin, one per --image."
+    ),
+    init: Path = typer.Option(..., "--init", help="calib.yaml with the camera and an initial T_cam_lidar."),
+    out: Path = typer.Option(..., "--out", help="calib.yaml to write."),
+    overlay: Path | None = typer.Option(
+        None, "--overlay", help="PNG: LiDAR points on the first image, initial guess beside the result."
+    ),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
+) -> None:
+    """Targetless LiDAR-camera extrinsic refinement from image + point-cloud pairs and a rough guess."""
+    import cv2
+
+    from calib.overlay import write_comparison
+    from calib.pointcloud_io import read_point_cloud
+    from calib.targetless import ExtrinsicPair, refine_extrinsic
+    from rig.calibration import load_calibration, save_calibration
+    from rig.errors import InputError
+
+    if len(image) != len(points):
+        raise InputError(
+            f"{len(image)} --image but {len(points)} --points; give one cloud per image", field="--points"
+        )
+    start = load_calibration(init)
+    pairs = []
+    for image_path, cloud_path in zip(image, points, strict=True):
+        picture = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
+        if picture is None:
+            raise InputError("cannot read the image", path=image_path)
+        pairs.append(ExtrinsicPair(picture, read_point_cloud(cloud_path)))
+    result = refine_extrinsic(pairs, start.camera, start.T_cam_lidar)
+    calibration = _merge_into(
+        out if out.exists() else init,
+        camera=start.camera,
+        T_cam_lidar=result.T_cam_lidar,
+        quality={"extrinsic": result.to_json()},
+    )
+    save_calibration(calibration, out)
+    if overlay is not None:
+        write_comparison(
+            overlay,
+            pairs[0].image,
+            start.camera,
+            pairs[0].cloud.points,
+            start.T_cam_lidar,
+            result.T_cam_lidar,
+        )
+    if json_out:
+        emit_json({**result.to_json(), "out": str(out)})
+        return
+    rot, trans = result.change_from_init()
+    console.print(
+        f"moved {rot:.3f}° / {trans * 100:.1f} cm from the guess; "
+        f"uncertainty ±{result.rotation_std_deg:.3f}° "
+        f"±{result.translation_std_m * 100:.1f} cm: {result.verdict}"
+        + ("" if not result.reasons else " (" + "; ".join(result.reasons) + ")")
+    )
+    console.print(f"wrote {out}")
