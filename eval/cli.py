@@ -14,6 +14,7 @@ from calib import cli as calib_cli
 from eval.mesh_eval_cli import eval_command
 from rig import trajectory_cli
 from rig.cli_support import run_app, version_callback
+from rig.sim import cli as sim_cli
 from slam_bridge import cli as slam_cli
 
 app = typer.Typer(
@@ -27,6 +28,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.add_typer(trajectory_cli.app, name="trajectory")
+app.command("sim")(sim_cli.sim)
 app.command("eval")(eval_command)
 app.add_typer(slam_cli.app, name="slam")
 app.add_typer(calib_cli.app, name="calibrate")

@@ -1,0 +1,126 @@
+"""Options of a simulated run; ``scene.yaml`` stores them so that a run can be regenerated."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from rig.camera import CameraModel
+from rig.errors import InputError
+
+#: What ``--quick`` changes: a short run at a small image size, for tests and smoke checks.
+QUICK = {"duration_s": 3.0, "width": 160, "height": 120, "lidar_points": 8000}
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything that determines a simulated run (with the seed, runs are bit-reproducible).
+
+    Attributes:
+        preset: procedural scene (``room``, ``corridor``, ``stairs``); ignored with ``mesh``.
+        mesh, trajectory: a user mesh and camera-to-world trajectory (OpenCV camera axes)
+            instead of a preset; ``trajectory_rate_hz`` times trajectories without stamps.
+        seed: seeds scene layout, textures, path wobble, clocks and every noise.
+        duration_s: seconds of motion along a preset's path.
+        carrier: ``wheeled`` (camera 0.35–0.55 m high) or ``handheld`` (1.3–1.5 m).
+        fps, width, height, camera_model: the camera (``pinhole`` or ``fisheye``).
+        image_format: how frames are stored in the session (``png`` lossless, ``jpeg``, ``raw``).
+        image_noise, exposure_jitter: pixel noise std (grey levels) and per-frame gain std.
+        lidar, lidar_rate_hz, lidar_points, range_noise_m, dropout, max_range_m: the LiDAR.
+        imu_rate_hz: IMU sample rate.
+        time_offset_s: camera–LiDAR time offset written to calib.yaml (add to LiDAR times).
+    """
+
+    preset: str = "room"
+    mesh: str | None = None
+    trajectory: str | None = None
+    trajectory_rate_hz: float = 30.0
+    seed: int = 0
+    duration_s: float = 20.0
+    carrier: str = "wheeled"
+    fps: float = 30.0
+    width: int = 320
+    height: int = 240
+    camera_model: str = "pinhole"
+    image_format: str = "png"
+    image_noise: float = 0.0
+    exposure_jitter: float = 0.0
+    lidar: str = "rosette"
+    lidar_rate_hz: float = 10.0
+    lidar_points: int = 20000
+    range_noise_m: float = 0.015
+    dropout: float = 0.02
+    max_range_m: float = 40.0
+    imu_rate_hz: float = 200.0
+    time_offset_s: float = 0.015
+
+    def __post_init__(self) -> None:
+        if (self.mesh is None) != (self.trajectory is None):
+            raise InputError("--mesh and --trajectory go together", field="mesh/trajectory")
+        for name in (
+            "duration_s",
+            "fps",
+            "lidar_rate_hz",
+            "imu_rate_hz",
+            "trajectory_rate_hz",
+            "max_range_m",
+        ):
+            if not getattr(self, name) > 0:
+                raise InputError(f"must be positive, got {getattr(self, name)}", field=name)
+        if self.width < 8 or self.height < 8:
+            raise InputError(f"image too small: {self.width}x{self.height}", field="width/height")
+        if self.image_format not in ("png", "jpeg", "raw"):
+            raise InputError(
+                f"unknown {self.image_format!r}; expected png, jpeg or raw", field="image_format"
+            )
+        if self.carrier not in ("wheeled", "handheld"):
+            raise InputError(f"unknown {self.carrier!r}; expected wheeled or handheld", field="carrier")
+        if abs(self.time_offset_s) > 1.0:
+            raise InputError(f"expected at most 1 s, got {self.time_offset_s}", field="time_offset_s")
+
+    def quick(self) -> SimConfig:
+        """This configuration with the :data:`QUICK` settings."""
+        return replace(self, **QUICK)
+
+    def camera(self) -> CameraModel:
+        """The simulated camera: ~65° (pinhole) or ~130° (fisheye) horizontal field of view."""
+        w, h = self.width, self.height
+        if self.camera_model == "fisheye":
+            f = 0.45 * w
+            dist = [0.02, -0.01, 0.003, -0.001]
+        elif self.camera_model == "pinhole":
+            f = 0.78 * w
+            dist = [-0.10, 0.04, 0.0005, -0.0003, 0.0]
+        else:
+            raise InputError(
+                f"unknown {self.camera_model!r}; expected pinhole or fisheye", field="camera_model"
+            )
+        K = np.array([[f, 0.0, (w - 1) / 2], [0.0, f, (h - 1) / 2], [0.0, 0.0, 1.0]])
+        return CameraModel(self.camera_model, w, h, K, np.array(dist))  # type: ignore[arg-type]
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_scene_yaml(cls, path: str | Path) -> SimConfig:
+        """The configuration stored under ``config:`` in a ``scene.yaml``."""
+        path = Path(path)
+        try:
+            data = yaml.safe_load(path.read_text())
+        except (OSError, yaml.YAMLError) as exc:
+            raise InputError(f"cannot read scene file ({exc})", path=path) from None
+        config = data.get("config") if isinstance(data, dict) else None
+        if not isinstance(config, dict):
+            raise InputError("missing", path=path, field="config")
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(config) - known)
+        if unknown:
+            raise InputError(f"unknown option(s) {', '.join(unknown)}", path=path, field="config")
+        try:
+            return cls(**config)
+        except TypeError as exc:
+            raise InputError(str(exc), path=path, field="config") from None

@@ -1,0 +1,226 @@
+"""Procedural scene presets: triangle meshes with a material per face, a robot path and a rig.
+
+World frame: z up, metres. Solids (boxes, table parts, steps) are closed meshes; rooms and
+corridors are closed shells whose faces point inwards.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from rig.errors import InputError
+from rig.sim.textures import MATERIAL_IDS
+from rig.transforms import make_transform
+
+#: Rotation from a LiDAR frame (x forward, y left, z up) to the OpenCV camera frame.
+R_CAM_LIDAR_NOMINAL = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+
+
+@dataclass
+class SceneMesh:
+    """A triangle mesh ``(V, 3)``/``(F, 3)`` and the material index of each face ``(F,)``."""
+
+    mesh: trimesh.Trimesh
+    face_material: np.ndarray
+
+
+def _join(parts: list[SceneMesh]) -> SceneMesh:
+    mesh = trimesh.util.concatenate([p.mesh for p in parts])
+    return SceneMesh(mesh, np.concatenate([p.face_material for p in parts]))
+
+
+def box(
+    size: tuple[float, float, float], centre: tuple[float, float, float], material: str, yaw: float = 0.0
+) -> SceneMesh:
+    """A closed box ``size`` (x, y, z) centred at ``centre``, turned by ``yaw`` about z."""
+    T = make_transform(Rotation.from_euler("z", yaw).as_matrix(), centre)
+    mesh = trimesh.creation.box(extents=size, transform=T)
+    return SceneMesh(mesh, np.full(len(mesh.faces), MATERIAL_IDS[material]))
+
+
+def shell(
+    size: tuple[float, float, float], walls: str, floor: str = "tiles", ceiling: str = "ceiling"
+) -> SceneMesh:
+    """Inward-facing box from (0, 0, 0) to ``size``: floor, ceiling and four walls."""
+    solid = trimesh.creation.box(extents=size, transform=make_transform(np.eye(3), np.asarray(size) / 2))
+    mesh = trimesh.Trimesh(solid.vertices, solid.faces[:, ::-1])  # reversed winding: normals point in
+    nz = mesh.face_normals[:, 2]
+    material = np.where(
+        nz > 0.5, MATERIAL_IDS[floor], np.where(nz < -0.5, MATERIAL_IDS[ceiling], MATERIAL_IDS[walls])
+    )
+    return SceneMesh(mesh, material)
+
+
+def table(centre_xy: tuple[float, float], rng: np.random.Generator) -> list[SceneMesh]:
+    """A wooden table top on four thin (4 cm) metal legs."""
+    w, d, h, top, leg = 1.2, 0.8, 0.74, 0.04, 0.04
+    x, y = centre_xy
+    yaw = rng.uniform(-0.2, 0.2)
+    R = Rotation.from_euler("z", yaw).as_matrix()[:2, :2]
+    parts = [box((w, d, top), (x, y, h - top / 2), "wood", yaw)]
+    for sx in (-1, 1):
+        for sy in (-1, 1):
+            lx, ly = R @ np.array([sx * (w / 2 - 0.06), sy * (d / 2 - 0.06)])
+            parts.append(box((leg, leg, h - top), (x + lx, y + ly, (h - top) / 2), "metal", yaw))
+    return parts
+
+
+def room(rng: np.random.Generator) -> SceneMesh:
+    """An 8 × 6 × 2.6 m room: boxes, a table on thin legs, and a 15 cm step up to a platform."""
+    walls = shell((8.0, 6.0, 2.6), "plaster")
+    walls.face_material[walls.mesh.face_normals[:, 1] > 0.5] = MATERIAL_IDS["bricks"]  # the wall at y = 0
+    parts = [walls]
+    for size, centre, material in (
+        ((0.8, 0.6, 0.6), (0.6, 5.2), "cardboard"),
+        ((0.5, 0.5, 0.9), (7.3, 0.6), "fabric"),
+        ((0.6, 1.2, 0.45), (0.5, 3.0), "fabric"),
+        ((1.0, 0.4, 1.6), (4.8, 5.55), "wood"),
+        ((0.45, 0.45, 0.45), (2.4, 5.5), "cardboard"),
+    ):
+        jitter = rng.uniform(-0.1, 0.1, 2)
+        parts.append(
+            box(
+                size,
+                (centre[0] + jitter[0], centre[1] + jitter[1], size[2] / 2),
+                material,
+                rng.uniform(-0.15, 0.15),
+            )
+        )
+    parts += table((3.0, 4.4), rng)
+    parts.append(box((1.8, 1.8, 0.15), (7.1, 5.1, 0.075), "concrete"))  # the step
+    return _join(parts)
+
+
+def _quads(quads: list[tuple[int, int, int, int]]) -> np.ndarray:
+    """Triangles ``(2Q, 3)`` of counter-clockwise quads (as seen from the side they face)."""
+    q = np.asarray(quads)
+    return np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+
+
+def tunnel(centreline: np.ndarray, width: float, height: float, walls: str, floor: str) -> SceneMesh:
+    """Closed, inward-facing corridor of ``width`` × ``height`` along a 2-D polyline ``(K, 2)``."""
+    c = np.asarray(centreline, dtype=np.float64)
+    direction = np.diff(c, axis=0)
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    normal = np.column_stack([-direction[:, 1], direction[:, 0]])  # left of travel
+    n_in = np.vstack([normal[:1], normal])
+    n_out = np.vstack([normal, normal[-1:]])
+    miter = (n_in + n_out) / (1.0 + np.sum(n_in * n_out, axis=1, keepdims=True)) * (width / 2)
+    k = len(c)
+    left, right = c + miter, c - miter
+    ground = np.vstack([left, right])  # left i -> i, right i -> k + i
+    vertices = np.vstack(
+        [np.column_stack([ground, np.zeros(2 * k)]), np.column_stack([ground, np.full(2 * k, height)])]
+    )
+    up = 2 * k
+    floor_q, ceiling_q, wall_q = [], [], []
+    for i in range(k - 1):
+        L0, L1, R0, R1 = i, i + 1, k + i, k + i + 1
+        floor_q.append((R0, R1, L1, L0))
+        ceiling_q.append((L0 + up, L1 + up, R1 + up, R0 + up))
+        wall_q.append((L0, L1, L1 + up, L0 + up))
+        wall_q.append((R1, R0, R0 + up, R1 + up))
+    wall_q.append((k, 0, up, k + up))
+    wall_q.append((k - 1, 2 * k - 1, 2 * k - 1 + up, k - 1 + up))
+    faces = np.concatenate([_quads(floor_q), _quads(ceiling_q), _quads(wall_q)])
+    material = np.concatenate(
+        [
+            np.full(2 * len(floor_q), MATERIAL_IDS[floor]),
+            np.full(2 * len(ceiling_q), MATERIAL_IDS["ceiling"]),
+            np.full(2 * len(wall_q), MATERIAL_IDS[walls]),
+        ]
+    )
+    return SceneMesh(trimesh.Trimesh(vertices, faces, process=False), material)
+
+
+def corridor(rng: np.random.Generator) -> SceneMesh:
+    """A 2 m wide, 2.6 m high corridor, 32 m long with two right-angle turns, pillars every 2.5 m."""
+    width, height = 2.0, 2.6
+    centreline = np.array([(-1.0, 0.0), (14.0, 0.0), (14.0, 8.0), (25.0, 8.0)])
+    parts = [tunnel(centreline, width, height, "plaster", "concrete")]
+    for a, b in itertools.pairwise(centreline):
+        direction = (b - a) / np.linalg.norm(b - a)
+        side = np.array([-direction[1], direction[0]])
+        for along in np.arange(2.5, np.linalg.norm(b - a) - 1.5, 2.5):
+            for s in (-1, 1):
+                x, y = a + direction * (along + rng.uniform(-0.05, 0.05)) + side * s * (width / 2 - 0.1)
+                size = (0.3, 0.2) if direction[0] else (0.2, 0.3)
+                parts.append(box((*size, height), (x, y, height / 2), "bricks"))
+    return _join(parts)
+
+
+def stairs(rng: np.random.Generator) -> SceneMesh:
+    """A 7 × 5 × 3.2 m hall with a flight of five 15 cm steps up to a landing, and a few boxes."""
+    parts = [shell((7.0, 5.0, 3.2), "concrete")]
+    rise, tread, width = 0.15, 0.30, 1.6
+    for k in range(5):
+        h = rise * (k + 1)
+        parts.append(box((tread, width, h), (4.0 + tread * (k + 0.5), 4.1, h / 2), "wood"))
+    parts.append(
+        box((1.5, width, rise * 5), (4.0 + tread * 5 + 0.75, 4.1, rise * 2.5), "concrete")
+    )  # landing
+    for size, centre in (((0.6, 0.6, 0.6), (0.6, 4.3)), ((0.5, 0.8, 0.4), (6.4, 0.6))):
+        parts.append(box(size, (*centre, size[2] / 2), "cardboard", rng.uniform(-0.2, 0.2)))
+    return _join(parts)
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A procedural scene with the path the robot drives through it and the rig's extrinsic.
+
+    Attributes:
+        build: seeded scene generator.
+        waypoints: ``(K, 2)`` x, y of the robot path (z up world).
+        closed: the path is a loop (driven round as often as the duration needs).
+        T_cam_lidar: ``(4, 4)`` LiDAR-to-camera transform of the rig in this preset.
+    """
+
+    name: str
+    build: Callable[[np.random.Generator], SceneMesh]
+    waypoints: tuple[tuple[float, float], ...]
+    closed: bool
+    T_cam_lidar: np.ndarray
+
+
+def _extrinsic(rot_deg: tuple[float, float, float], t_cam: tuple[float, float, float]) -> np.ndarray:
+    """A LiDAR mounted above the camera: nominal axes, a small rotation (degrees), an offset (m)."""
+    R = Rotation.from_euler("xyz", rot_deg, degrees=True).as_matrix() @ R_CAM_LIDAR_NOMINAL
+    return make_transform(R, t_cam)
+
+
+PRESETS: dict[str, Preset] = {
+    "room": Preset(
+        "room",
+        room,
+        ((1.4, 1.3), (3.6, 1.1), (5.8, 1.5), (6.3, 3.0), (5.0, 3.4), (3.2, 2.8), (1.8, 2.4)),
+        True,
+        _extrinsic((1.0, -2.0, 0.5), (0.02, -0.09, -0.03)),
+    ),
+    "corridor": Preset(
+        "corridor",
+        corridor,
+        ((0.5, 0.0), (7.0, 0.1), (13.0, 0.0), (14.0, 1.0), (14.0, 7.0), (15.0, 8.0), (23.0, 8.0)),
+        False,
+        _extrinsic((-1.5, 1.0, 0.0), (0.0, -0.12, 0.01)),
+    ),
+    "stairs": Preset(
+        "stairs",
+        stairs,
+        ((1.0, 1.0), (3.0, 0.9), (4.8, 1.4), (5.2, 2.4), (4.0, 2.7), (2.5, 2.6), (1.2, 2.0)),
+        True,
+        _extrinsic((0.5, 1.5, -1.0), (-0.03, -0.07, -0.05)),
+    ),
+}
+
+
+def get_preset(name: str) -> Preset:
+    """The preset called ``name``; raises :class:`InputError` listing the known ones."""
+    if name not in PRESETS:
+        raise InputError(f"unknown preset {name!r}; expected one of {', '.join(PRESETS)}", field="preset")
+    return PRESETS[name]
