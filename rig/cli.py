@@ -1,10 +1,17 @@
-"""``rig``: the on-robot command line (record, inspect and replay sessions)."""
+"""``rig``: the on-robot command line (list devices, record, check, inspect, replay, recover sessions)."""
 
 from __future__ import annotations
 
+import signal
+import tempfile
+import threading
+from pathlib import Path
+from typing import Any
+
 import typer
 
-from rig.cli_support import run_app, version_callback
+from rig.cli_support import console, emit_json, run_app, version_callback
+from rig.errors import InputError
 
 app = typer.Typer(
     name="rig",
@@ -26,6 +33,263 @@ def _root(
     ),
 ) -> None:
     """On-robot tools: record time-stamped camera + LiDAR sessions and inspect them."""
+
+
+def _serial_ports() -> list[dict[str, Any]]:
+    from serial.tools import list_ports
+
+    return [
+        {
+            "port": p.device,
+            "description": p.description,
+            "vid": p.vid,
+            "pid": p.pid,
+            "serial": p.serial_number,
+        }
+        for p in list_ports.comports()
+    ]
+
+
+@app.command("list")
+def list_devices(json_out: bool = typer.Option(False, "--json", help="Print one JSON object.")) -> None:
+    """Devices found: USB devices of interest (with their serial ports), OAK cameras, serial ports."""
+    from rig.drivers.oak import list_oak_devices
+    from rig.drivers.usb import list_usb_devices
+
+    found = {"usb": list_usb_devices(), "oak": list_oak_devices(), "serial_ports": _serial_ports()}
+    if json_out:
+        emit_json(found)
+        return
+    if not any(found.values()):
+        console.print("no devices found")
+    for d in found["usb"]:
+        console.print(
+            f"usb {d['vid']}:{d['pid']} bus {d['bus']} addr {d['address']}  {d['what']}  {d['serial_ports']}"
+        )
+    for d in found["oak"]:
+        console.print(f"oak {d['id']}  {d['name']}  {d['state']}")
+    for d in found["serial_ports"]:
+        console.print(f"serial {d['port']}  {d['description']}")
+
+
+def _status_table(s: dict[str, Any]) -> Any:
+    from rich.table import Table
+
+    table = Table(
+        title=f"recording {s['out']}  {s['elapsed_s']:.1f} s  {s['bytes'] / 1e6:.1f} MB  queue {s['queue']}"
+    )
+    for col in ("topic", "messages", "Hz", "dropped"):
+        table.add_column(col)
+    for topic, n in sorted(s["written"].items()):
+        table.add_row(topic, str(n), f"{s['rates_hz'].get(topic, 0):.1f}", str(s["dropped"].get(topic, 0)))
+    for name, h in s["devices"].items():
+        clock = h.get("clock") or {}
+        offset = (
+            f"offset {clock['offset_ns'] / 1e6:.3f} ms drift {clock['drift_ppm']:.1f} ppm" if clock else ""
+        )
+        table.add_row(
+            f"[dim]{name}[/]",
+            f"crc {h['crc_errors']} drop {h['dropped']}",
+            f"reconn {h['reconnects']}",
+            offset,
+        )
+    return table
+
+
+def _record(recording: Any, duration: float | None, after_open: Any = None) -> dict[str, Any]:
+    from rich.live import Live
+
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with Live(console=console, refresh_per_second=2, transient=not console.is_terminal) as live:
+            return recording.run(
+                duration, stop, on_tick=lambda s: live.update(_status_table(s)), after_open=after_open
+            )
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+@app.command()
+def record(
+    out: Path = typer.Option(..., "--out", help="Session file to write (.mcap)."),
+    config: Path | None = typer.Option(None, "--config", help="rig.yaml describing the devices."),
+    sim: Path | None = typer.Option(
+        None, "--sim", help="Virtual-rig scene folder: record it through mock devices."
+    ),
+    duration: float | None = typer.Option(
+        None, "--duration", help="Seconds to record (default: until Ctrl-C)."
+    ),
+    corrupt_rate: float = typer.Option(
+        1e-4, "--corrupt-rate", help="--sim: fraction of serial bytes corrupted."
+    ),
+    unplug_at: float | None = typer.Option(
+        None, "--unplug-at", help="--sim: unplug the serial LiDAR after S s."
+    ),
+    unplug_for: float = typer.Option(
+        1.0, "--unplug-for", help="--sim: seconds the serial LiDAR stays unplugged."
+    ),
+    json_out: bool = typer.Option(False, "--json", help="Print the summary as one JSON object."),
+) -> None:
+    """Record a session from the devices of a rig.yaml, or from a simulated scene through mock devices.
+
+    SIGINT/SIGTERM finish the file cleanly; a full disk stops recording with a valid file.
+    """
+    from rig.drivers.base import DeviceError
+    from rig.record import Recording
+
+    if (config is None) == (sim is None):
+        raise InputError("give exactly one of --config RIG.yaml or --sim SCENE_DIR", field="--config/--sim")
+    try:
+        if sim is not None:
+            from rig.mock.sim_rig import build_sim_rig
+
+            with tempfile.TemporaryDirectory(prefix="rig-sim-") as work:
+                rig = build_sim_rig(sim, work, corrupt_rate, unplug_at, unplug_for)
+                meta = {"sim": rig.ground_truth()}
+                try:
+                    summary = _record(Recording(rig.sources, out, meta), duration, rig.start_devices)
+                finally:
+                    rig.stop_devices()
+                summary["sim"] = rig.ground_truth()
+        else:
+            from rig.record import build_sources
+            from rig.record_config import load_config
+
+            cfg = load_config(config)  # type: ignore[arg-type]
+            rec = cfg.recorder
+            options = {
+                k: v
+                for k, v in {
+                    "queue_size": rec.get("queue_size"),
+                    "policy": rec.get("policy"),
+                    "image_format": rec.get("image_format"),
+                    "chunk_size": int(rec["chunk_mb"] * (1 << 20)) if "chunk_mb" in rec else None,
+                    "min_free_bytes": int(rec["min_free_mb"] * (1 << 20)) if "min_free_mb" in rec else None,
+                }.items()
+                if v is not None
+            }
+            summary = _record(Recording(build_sources(cfg), out, {"rig_yaml": cfg.raw}, options), duration)
+    except DeviceError as exc:
+        console.print(f"[bold red]device error:[/] {exc}", highlight=False)
+        raise typer.Exit(1) from exc
+    if summary.get("error"):
+        console.print(f"[bold red]recording stopped:[/] {summary['error']}", highlight=False)
+    if json_out:
+        emit_json(summary)
+    else:
+        console.print(f"wrote {out}: " + ", ".join(f"{t} {n}" for t, n in sorted(summary["written"].items())))
+
+
+@app.command()
+def check(
+    config: Path = typer.Option(..., "--config", help="rig.yaml describing the devices."),
+    messages: int = typer.Option(3, "--messages", help="Messages to read from each device."),
+    timeout: float = typer.Option(5.0, "--timeout", help="Seconds to wait for them, per device."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Open each device of a rig.yaml, read a few messages, and report its health."""
+    import time
+
+    from rig.drivers.base import DeviceError
+    from rig.record import build_sources
+    from rig.record_config import load_config
+
+    report: dict[str, Any] = {}
+    for source in build_sources(load_config(config)):
+        d = source.driver
+        entry: dict[str, Any] = {"kind": d.kind, "ok": False, "messages": 0}
+        try:
+            d.open()
+            d.start()
+            deadline = time.monotonic() + timeout
+            while entry["messages"] < messages and time.monotonic() < deadline:
+                entry["messages"] += len(d.read(0.1))
+            entry.update(ok=entry["messages"] >= messages, device_id=d.device_id(), health=d.health.as_dict())
+        except (DeviceError, OSError) as exc:
+            entry["error"] = str(exc)
+        finally:
+            try:
+                d.stop()
+                d.close()
+            except (DeviceError, OSError):
+                pass
+        report[d.name] = entry
+    if json_out:
+        emit_json({"devices": report, "ok": all(e["ok"] for e in report.values())})
+    else:
+        for name, e in report.items():
+            status = "[green]ok[/]" if e["ok"] else f"[red]FAIL[/] {e.get('error', '')}"
+            console.print(f"{name} ({e['kind']}): {status}  {e['messages']} messages", highlight=False)
+    if not all(e["ok"] for e in report.values()):
+        raise typer.Exit(1)
+
+
+@app.command()
+def info(
+    session: Path = typer.Argument(..., help="Session file (.mcap)."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Topics, counts, time span, recording errors, and whether the file was cut short."""
+    from rig.session.info import session_info
+
+    result = session_info(session)
+    if json_out:
+        emit_json(result)
+        return
+    for name, t in result["topics"].items():
+        console.print(f"{name:32s} {t['type']:32s} {t['count']:7d}", highlight=False)
+    console.print(f"duration {result['duration_s']:.2f} s, {result['messages']} messages")
+    if result["truncated"]:
+        console.print(
+            f"[yellow]truncated[/]: read up to the last complete chunk ({result['truncation_reason']}); "
+            f"`rig recover {session} --out FIXED.mcap` rewrites it as a valid file",
+            highlight=False,
+        )
+
+
+@app.command()
+def replay(
+    session: Path = typer.Argument(..., help="Session file (.mcap)."),
+    rate: float = typer.Option(
+        1.0, "--rate", help="Speed factor (2 = twice as fast, 0 = as fast as possible)."
+    ),
+    topic: list[str] | None = typer.Option(None, "--topic", help="Only these topics (repeatable)."),
+    json_out: bool = typer.Option(False, "--json", help="Print the summary as one JSON object."),
+) -> None:
+    """Re-emit a session's messages with their original timing (one line per message on stderr)."""
+    from rig.session.replay import replay as run_replay
+
+    def show(m: Any) -> None:
+        if not json_out:
+            console.print(f"{m.t_host} {m.topic} {m.msgtype}", highlight=False)
+
+    stop = threading.Event()
+    previous = signal.signal(signal.SIGINT, lambda *_: stop.set())
+    try:
+        result = run_replay(session, show, rate=rate, topics=topic or None, stop=stop)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if json_out:
+        emit_json(result)
+
+
+@app.command()
+def recover(
+    session: Path = typer.Argument(..., help="A (truncated) session file."),
+    out: Path = typer.Option(..., "--out", help="The valid file to write."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Salvage every complete record of a truncated recording into a valid MCAP file."""
+    from rig.session.recover import recover as run_recover
+
+    result = run_recover(session, out)
+    if json_out:
+        emit_json(result)
+    else:
+        state = f"truncated ({result['reason']})" if result["truncated"] else "complete"
+        console.print(f"{session} was {state}: wrote {result['messages']} messages to {out}", highlight=False)
 
 
 main = run_app(app, "rig")

@@ -190,3 +190,8 @@ class NodeStreamParser:
         data_ok = b"".join(good)
         self.nodes += len(data_ok) // NODE_SIZE
         return parse_nodes(data_ok), np.asarray(ends, dtype=np.int64)
+
+    @property
+    def offset(self) -> int:
+        """Stream offset just past the last byte fed."""
+        return self._consumed + len(self._buf)

@@ -62,6 +62,7 @@ class SessionWriter:
         self._channels: dict[str, tuple[int, str, str]] = {}
         self.counts: Counter[str] = Counter()
         self._closed = False
+        self._final_bytes = 0
         self.write_metadata(SESSION_METADATA, {**(metadata or {}), "software_version": package_version()})
 
     def write_metadata(self, name: str, data: dict[str, Any]) -> None:
@@ -128,6 +129,15 @@ class SessionWriter:
     def write_imu(self, sample: ImuSample, topic: str = DEFAULT_TOPICS["imu"], frame_id: str = "imu") -> None:
         self.write_message(topic, rm.imu_to_msg(sample, frame_id), sample.t_host, sample.t_device)
 
+    @property
+    def bytes_written(self) -> int:
+        """Bytes handed to the file so far (the open chunk is not counted until it is full)."""
+        return self._final_bytes if self._file.closed else self._file.tell()
+
+    def flush(self) -> None:
+        """Push buffered bytes to the operating system, so a killed process loses only the open chunk."""
+        self._file.flush()
+
     def close(self) -> None:
         """Finish the file: last chunk, summary and footer."""
         if self._closed:
@@ -136,6 +146,7 @@ class SessionWriter:
         try:
             self._writer.finish()
         finally:
+            self._final_bytes = self._file.tell()
             self._file.close()
 
     def __enter__(self) -> SessionWriter:

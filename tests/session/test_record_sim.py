@@ -1,0 +1,94 @@
+"""``rig record --sim`` end to end: rates, CRC errors, SIGTERM/SIGINT clean finish, SIGKILL salvage."""
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.session.conftest import RATES
+
+BIN = Path(sys.executable).parent
+
+
+def rig(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    return subprocess.run([BIN / "rig", *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
+
+def info(path: Path) -> dict:
+    result = rig("info", path, "--json")
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+def test_record_sim_rates_within_2_percent_and_crc_errors_counted(scene_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "s.mcap"
+    result = rig(
+        "record", "--sim", scene_dir, "--out", out, "--duration", 5, "--corrupt-rate", 3e-4, "--json"
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    report = info(out)
+    assert not report["truncated"] and report["finished"]
+    expected = summary["sim"]["expected_rates_hz"]
+    assert expected["/camera/image/compressed"] == pytest.approx(RATES["image"])
+    assert expected["/imu/data"] == pytest.approx(RATES["imu"])
+    for topic, rate in expected.items():
+        t = report["topics"][topic]
+        span_s = (t["last_t"] - t["first_t"]) / 1e9
+        measured = (t["count"] - 1) / span_s
+        assert measured == pytest.approx(rate, rel=0.02), (topic, t, measured)
+        assert t["count"] >= 0.9 * rate * 5
+    errors = report["errors"]
+    assert errors["dropped"] == {} and errors["write_error"] is None
+    devices = errors["devices"]
+    assert all(d["dropped"] == 0 and d["reconnects"] == 0 for d in devices.values()), devices
+    corrupted = summary["sim"]["serial_corrupted_packets"]
+    assert corrupted > 0 and 0 < devices["scan2d"]["crc_errors"] <= corrupted
+    assert report["clock"]["camera"]["n_pairs"] > 100
+    assert report["session"]["device_ids"]["camera"] == "FAKE-OAK-0001"
+
+
+def _start(scene_dir: Path, out: Path) -> subprocess.Popen:
+    proc = subprocess.Popen(
+        [BIN / "rig", "record", "--sim", scene_dir, "--out", out, "--duration", "60"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 300_000):
+        time.sleep(0.1)
+    time.sleep(1.0)  # about 2 s of recording
+    return proc
+
+
+def test_sigkill_leaves_a_file_rig_info_reads_and_calls_truncated(scene_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "killed.mcap"
+    proc = _start(scene_dir, out)
+    proc.kill()
+    proc.wait(10)
+    report = info(out)
+    assert report["truncated"] and not report["finished"]
+    assert report["messages"] > 50
+    assert report["topics"]["/camera/image/compressed"]["count"] > 10
+    assert report["errors"]["devices"]["camera"]["received"] > 0  # the last status record before the kill
+    fixed = tmp_path / "fixed.mcap"
+    result = rig("recover", out, "--out", fixed, "--json")
+    assert result.returncode == 0, result.stderr
+    salvage = json.loads(result.stdout)
+    assert salvage["truncated"] and salvage["messages"] == report["messages"]
+    assert not info(fixed)["truncated"]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_sigterm_and_sigint_finish_the_file(scene_dir: Path, tmp_path: Path, sig: signal.Signals) -> None:
+    out = tmp_path / "stopped.mcap"
+    proc = _start(scene_dir, out)
+    proc.send_signal(sig)
+    assert proc.wait(20) == 0, proc.stderr.read().decode()
+    report = info(out)
+    assert not report["truncated"] and report["finished"]
+    assert report["topics"]["/lidar/points"]["count"] > 5
