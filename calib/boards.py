@@ -110,7 +110,7 @@ def detect_chessboard(gray: np.ndarray, cols: int, rows: int) -> np.ndarray | No
 
 
 def find_chessboard_size(grays: Sequence[np.ndarray], min_side: int = 3) -> tuple[int, int]:
-    """The ``(cols, rows)`` inner-corner count seen most often in the images.
+    """The ``(cols, rows)`` inner-corner count (``cols >= rows``) seen most often in the images.
 
     Uses the detector's "larger board" mode, which returns the whole board it finds around a
     small seed pattern. Raises :class:`InputError` if no image shows a board.
@@ -122,7 +122,9 @@ def find_chessboard_size(grays: Sequence[np.ndarray], min_side: int = 3) -> tupl
             small, (min_side, min_side), _SB_FLAGS | cv2.CALIB_CB_LARGER
         )
         if found and meta is not None:
-            sizes[(int(meta.shape[1]), int(meta.shape[0]))] += 1
+            # The detector may return the grid either way round; a board fits both orders.
+            rows, cols = sorted(int(v) for v in meta.shape)
+            sizes[(cols, rows)] += 1
     if not sizes:
         raise InputError("no chessboard found in any image", field="images")
     return sizes.most_common(1)[0][0]

@@ -1,0 +1,231 @@
+"""Target-based LiDAR→camera extrinsic: a planar board seen by both sensors in several poses.
+
+Per pose, the camera gives the board plane (from the board's corners and ``solvePnP``) and the
+LiDAR gives it too (RANSAC plane among the points near the board). Planes are written
+``n · p = d`` with ``d > 0`` (normal pointing away from the sensor), so both sensors' normals
+point the same way. The rotation aligns the normals (Kabsch), the translation solves
+``n_c · t = d_c - d_l``; a robust point-to-plane least-squares fit then refines all six degrees.
+Fewer than three well-spread normals leave rotation or translation undetermined: the verdict
+then says so.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from calib.boards import BoardView
+from calib.pointcloud_io import PointCloud
+from calib.targetless import ExtrinsicResult
+from rig.camera import CameraModel
+from rig.errors import InputError
+from rig.transforms import invert, make_transform, transform_points
+
+#: RANSAC inlier distance (m) for the LiDAR board plane, and the fewest inliers accepted.
+PLANE_THRESHOLD_M = 0.02
+MIN_PLANE_POINTS = 30
+#: Board points are searched this far (m) beyond the board's outline, predicted with the guess.
+SEARCH_MARGIN_M = 0.25
+#: Normals must spread: smallest / largest singular value of the stacked normals.
+MIN_NORMAL_SPREAD = 0.15
+MIN_POSES = 3
+MAX_ROT_STD_DEG = 0.1
+MAX_TRANS_STD_M = 0.01
+HUBER_SCALE_M = 0.02
+
+
+@dataclass(eq=False)
+class BoardObservation:
+    """One board pose: the camera's board pose ``T_cam_board`` ``(4, 4)`` and the LiDAR cloud."""
+
+    T_cam_board: np.ndarray
+    cloud: PointCloud
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Plane ``normal · p = offset`` with a unit normal ``(3,)`` and ``offset >= 0``."""
+
+    normal: np.ndarray
+    offset: float
+
+    @classmethod
+    def oriented(cls, normal: np.ndarray, offset: float) -> Plane:
+        n = np.asarray(normal, dtype=np.float64)
+        scale = np.linalg.norm(n)
+        n, offset = n / scale, offset / scale
+        return cls(-n, -offset) if offset < 0 else cls(n, offset)
+
+
+def board_pose(view: BoardView, camera: CameraModel) -> np.ndarray:
+    """``T_cam_board`` ``(4, 4)`` from the board corners of one view (any camera model).
+
+    The board frame here has its origin at the centre of the corners, so a board outline
+    centred on it does not depend on which corner the detector numbered first.
+    """
+    normalized = camera.normalized_coordinates(view.image_points)
+    obj = view.object_points.astype(np.float64)
+    obj = obj - obj.mean(axis=0)
+    ok, rvec, tvec = cv2.solvePnP(obj, normalized, np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
+    if ok:
+        ok, rvec, tvec = cv2.solvePnP(
+            obj, normalized, np.eye(3), None, rvec, tvec, True, cv2.SOLVEPNP_ITERATIVE
+        )
+    if not ok:
+        raise InputError(f"cannot compute the board pose in {view.name}", field="board")
+    return make_transform(Rotation.from_rotvec(rvec.ravel()).as_matrix(), tvec.ravel())
+
+
+def camera_plane(T_cam_board: np.ndarray) -> Plane:
+    """The board plane (board z = 0) in the camera frame."""
+    normal = T_cam_board[:3, 2]
+    return Plane.oriented(normal, float(normal @ T_cam_board[:3, 3]))
+
+
+def board_points(
+    cloud: PointCloud,
+    T_cam_board: np.ndarray,
+    half_size: tuple[float, float],
+    T_init: np.ndarray | None,
+) -> np.ndarray:
+    """LiDAR points ``(M, 3)`` on the board: RANSAC plane inliers among the points within the
+    board outline (``half_size`` = half width and height in metres about the corners' centre) as
+    predicted by ``T_init``
+    (the whole cloud when ``T_init`` is None, which suits clouds cropped to the board)."""
+    import open3d as o3d
+
+    points = cloud.points
+    if T_init is not None and len(points):
+        in_board = transform_points(invert(T_cam_board) @ T_init, points)
+        m = SEARCH_MARGIN_M
+        keep = (
+            (np.abs(in_board[:, 0]) < half_size[0] + m)
+            & (np.abs(in_board[:, 1]) < half_size[1] + m)
+            & (np.abs(in_board[:, 2]) < m)
+        )
+        points = points[keep]
+    if len(points) < MIN_PLANE_POINTS:
+        return np.zeros((0, 3))
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    _, inliers = pcd.segment_plane(PLANE_THRESHOLD_M, 3, 500)
+    if len(inliers) < MIN_PLANE_POINTS:
+        return np.zeros((0, 3))
+    return points[np.asarray(inliers)]
+
+
+def fit_plane(points: np.ndarray) -> Plane:
+    """Least-squares plane through points ``(M, 3)``."""
+    centroid = points.mean(axis=0)
+    _, _, vt = np.linalg.svd(points - centroid, full_matrices=False)
+    return Plane.oriented(vt[2], float(vt[2] @ centroid))
+
+
+def closed_form(camera_planes: Sequence[Plane], lidar_planes: Sequence[Plane]) -> np.ndarray:
+    """``T_cam_lidar`` from three or more plane pairs: Kabsch on normals, then ``n_c · t = d_c - d_l``."""
+    n_c = np.array([p.normal for p in camera_planes])
+    n_l = np.array([p.normal for p in lidar_planes])
+    u, _, vt = np.linalg.svd(n_c.T @ n_l)
+    R = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    rhs = np.array([cam.offset - lid.offset for cam, lid in zip(camera_planes, lidar_planes, strict=True)])
+    t, *_ = np.linalg.lstsq(n_c, rhs, rcond=None)
+    return make_transform(R, t)
+
+
+def _residuals(
+    x: np.ndarray, T0: np.ndarray, planes: Sequence[Plane], points: Sequence[np.ndarray]
+) -> np.ndarray:
+    T = make_transform(Rotation.from_rotvec(x[:3]).as_matrix(), x[3:]) @ T0
+    return np.concatenate(
+        [
+            transform_points(T, pts) @ plane.normal - plane.offset
+            for plane, pts in zip(planes, points, strict=True)
+        ]
+    )
+
+
+def calibrate_with_board(
+    observations: Sequence[BoardObservation],
+    half_size: tuple[float, float],
+    T_init: np.ndarray | None = None,
+) -> ExtrinsicResult:
+    """``T_cam_lidar`` from board poses (``T_cam_board`` from :func:`board_pose`); ``half_size`` is
+    half the board's width and height (m) about the corners' centre, ``T_init`` an optional rough
+    guess (needed for uncropped clouds and with fewer than three poses).
+
+    Raises :class:`InputError` when there is neither a guess nor enough well-spread poses.
+    """
+    used, planes_c, planes_l, pts_l = [], [], [], []
+    for obs in observations:
+        pts = board_points(obs.cloud, obs.T_cam_board, half_size, T_init)
+        if len(pts):
+            used.append(obs.name)
+            planes_c.append(camera_plane(obs.T_cam_board))
+            planes_l.append(fit_plane(pts))
+            pts_l.append(pts)
+    reasons = []
+    normals = np.array([p.normal for p in planes_c]).reshape(-1, 3)
+    sv = np.linalg.svd(normals, compute_uv=False) if len(normals) else np.zeros(1)
+    spread = float(sv[-1] / sv[0]) if len(sv) == 3 and sv[0] > 0 else 0.0
+    if len(used) < MIN_POSES:
+        reasons.append(f"board plane found in {len(used)} pose(s); need {MIN_POSES} with different tilts")
+    elif spread < MIN_NORMAL_SPREAD:
+        reasons.append(
+            f"board normals hardly differ (spread {spread:.2f} < {MIN_NORMAL_SPREAD}); tilt the board more"
+        )
+    if reasons and T_init is None:
+        raise InputError("; ".join(reasons) + ", and no initial guess was given", field="board poses")
+    T0 = closed_form(planes_c, planes_l) if not reasons else np.asarray(T_init)
+    if not used:
+        return ExtrinsicResult(
+            T0.copy(),
+            T0.copy(),
+            "poorly constrained",
+            reasons,
+            np.inf,
+            np.inf,
+            {},
+            {},
+            0,
+            0,
+            method="target-based (board planes)",
+        )
+    fit = least_squares(
+        _residuals, np.zeros(6), args=(T0, planes_c, pts_l), loss="huber", f_scale=HUBER_SCALE_M
+    )
+    T = make_transform(Rotation.from_rotvec(fit.x[:3]).as_matrix(), fit.x[3:]) @ T0
+    residuals = fit.fun
+    dof = max(len(residuals) - 6, 1)
+    sigma2 = float(residuals @ residuals) / dof
+    jtj = fit.jac.T @ fit.jac
+    if np.linalg.matrix_rank(jtj, tol=1e-9 * max(np.abs(jtj).max(), 1e-300)) < 6:
+        rot_std = trans_std = np.inf
+    else:
+        cov = sigma2 * np.linalg.inv(jtj)
+        rot_std = float(np.degrees(np.sqrt(np.trace(cov[:3, :3]))))
+        trans_std = float(np.sqrt(np.trace(cov[3:, 3:])))
+    if not reasons and (rot_std > MAX_ROT_STD_DEG or trans_std > MAX_TRANS_STD_M):
+        reasons.append(
+            f"uncertainty ±{rot_std:.3f}° ±{trans_std * 100:.2f} cm above "
+            f"±{MAX_ROT_STD_DEG}° ±{MAX_TRANS_STD_M * 100:.0f} cm"
+        )
+    rms = float(np.sqrt(np.mean(residuals**2)))
+    return ExtrinsicResult(
+        T_cam_lidar=T,
+        T_init=T0 if T_init is None else T_init.copy(),
+        verdict="poorly constrained" if reasons else "ok",
+        reasons=reasons,
+        rotation_std_deg=rot_std,
+        translation_std_m=trans_std,
+        mutual_information={},
+        edge_score={},
+        n_points=int(sum(len(p) for p in pts_l)),
+        n_edge_points=0,
+        method="target-based (board planes)",
+        extra={"poses_used": used, "plane_rms_m": rms, "normal_spread": spread},
+    )
