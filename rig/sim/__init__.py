@@ -5,6 +5,7 @@ Public API (imported lazily, so that ``lts --help`` does not load open3d)::
     SimConfig            options of a run (scene.yaml stores them)
     simulate(config, out_dir, progress=None) -> summary dict   session.mcap + ground_truth/
     prepare(config) -> SimRun     world, motion, rig and clocks, without writing anything
+    record(run, out_dir, progress=None) -> summary dict        writes a prepared run
     World, preset_world, mesh_world, PRESETS, get_preset
     Motion, path_motion           continuous-time camera motion
     CameraSimulator               ray-cast images and depth
@@ -23,6 +24,7 @@ _EXPORTS = {
     "SimConfig": "rig.sim.config",
     "simulate": "rig.sim.simulate",
     "prepare": "rig.sim.simulate",
+    "record": "rig.sim.simulate",
     "SimRun": "rig.sim.simulate",
     "World": "rig.sim.world",
     "preset_world": "rig.sim.world",

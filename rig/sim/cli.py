@@ -56,7 +56,7 @@ def sim(
 
     from rig.sim.config import SimConfig
     from rig.sim.preview import preview_image
-    from rig.sim.simulate import prepare, simulate
+    from rig.sim.simulate import prepare, record
 
     if config is not None:
         cfg = SimConfig.from_scene_yaml(config)
@@ -85,12 +85,13 @@ def sim(
         )
         if quick:
             cfg = cfg.quick()
+    run = prepare(cfg)  # bad input fails here, before the progress bar appears
     columns = (TextColumn("simulating"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, console=console, transient=json_out) as bar:
         task = bar.add_task("sim", total=None)
-        summary = simulate(cfg, out_dir, lambda done, total: bar.update(task, completed=done, total=total))
+        summary = record(run, out_dir, lambda done, total: bar.update(task, completed=done, total=total))
     if preview is not None:
-        cv2.imwrite(str(preview), preview_image(prepare(cfg)))
+        cv2.imwrite(str(preview), preview_image(run))
         summary["preview"] = str(preview)
     if json_out:
         emit_json(summary)

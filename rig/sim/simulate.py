@@ -97,14 +97,21 @@ def prepare(config: SimConfig) -> SimRun:
 def simulate(
     config: SimConfig, out_dir: str | Path, progress: Callable[[int, int], None] | None = None
 ) -> dict[str, Any]:
-    """Simulate ``config`` into ``out_dir``: ``session.mcap`` and ``ground_truth/``.
+    """Simulate ``config`` into ``out_dir``: ``session.mcap`` and ``ground_truth/`` (see :func:`record`)."""
+    return record(prepare(config), out_dir, progress)
+
+
+def record(
+    run: SimRun, out_dir: str | Path, progress: Callable[[int, int], None] | None = None
+) -> dict[str, Any]:
+    """Record a prepared run into ``out_dir``: ``session.mcap`` and ``ground_truth/``.
 
     Messages are written in host-time order. ``progress(done, total)`` is called after each
     camera frame and LiDAR sweep. Returns a summary (counts, points per scan, paths).
     """
+    config = run.config
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    run = prepare(config)
     rng_scan, rng_image, rng_imu = (
         np.random.default_rng(s) for s in np.random.SeedSequence([config.seed, 2]).spawn(3)
     )

@@ -54,8 +54,8 @@ def path_motion(
     """Camera motion along a path through ``waypoints`` ``(K, 2)`` (x, y in the world, z up).
 
     A closed path is driven round as often as ``duration_s`` needs; an open one must be long
-    enough. The wheeled camera rides 0.35–0.55 m high, pitched a few degrees down with slight
-    vibration; the hand-held one 1.3–1.5 m high with bob, sway and a slow look-around.
+    enough. The wheeled camera rides 0.35–0.55 m high, pitched a few degrees down with a slight
+    rocking; the hand-held one 1.3–1.5 m high with bob, sway and a slow look-around.
     """
     pts = np.asarray(waypoints, dtype=np.float64)
     if closed:
@@ -82,7 +82,7 @@ def path_motion(
 
     if carrier == "wheeled":
         height = rng.uniform(0.35, 0.55)
-        z = np.full_like(knots, height) + _wobble(rng, knots, 0.002, (3.1, 4.7))
+        z = np.full_like(knots, height)
         pitch = np.deg2rad(rng.uniform(3.0, 8.0)) + _wobble(rng, knots, np.deg2rad(0.3), (2.3, 3.7))
         roll = _wobble(rng, knots, np.deg2rad(0.3), (1.9, 2.9))
         yaw = yaw + _wobble(rng, knots, np.deg2rad(4.0), (0.05, 0.11))
