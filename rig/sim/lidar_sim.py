@@ -66,7 +66,9 @@ class LidarModel:
             t = np.arange(self.points_per_scan) * (self.period_s / self.points_per_scan)
             tau = t_start_s + t
             half_fov = np.deg2rad(35.2)
-            w1, w2 = 2 * np.pi * 1103.7, -2 * np.pi * 1472.3  # incommensurate prism rates
+            # Counter-rotating prisms: a petal every 1/(f1 + f2) s, each turned by the golden angle
+            # from the last (f1 / (f1 + f2) = 0.382), so petals never repeat and fill the field.
+            w1, w2 = 2 * np.pi * 983.9, -2 * np.pi * 1592.1
             a = half_fov / 2 * (np.cos(w1 * tau) + np.cos(w2 * tau))
             b = half_fov / 2 * (np.sin(w1 * tau) + np.sin(w2 * tau))
             polar, azimuth = np.hypot(a, b), np.arctan2(b, a)
