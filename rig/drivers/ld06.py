@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from rig.clock import ClockEstimator
+from rig.clock import ClockEstimator, HostStamper
 from rig.drivers.base import Driver, Message
 from rig.drivers.ld06_protocol import BAUD, PACKET_SIZE, POINTS_PER_PACKET, TIMESTAMP_WRAP_MS, LdStreamParser
 from rig.drivers.scan2d import RevolutionAssembler
@@ -17,8 +17,9 @@ class Ld06Driver(Driver):
     """A LD06-family LiDAR on a serial port; it streams from power-on (no commands).
 
     Scans carry ``t_device`` (the packet timestamps, unwrapped from their 30 s wrap) and ``t_host``
-    from the online clock estimate; until it exists, the arrival time of the first packet's first
-    byte, corrected for serial transfer time (10 bits per byte at the model's baud rate).
+    from the online clock estimate (scans wait in a :class:`HostStamper` for its first second). The
+    estimate is fed with each packet's arrival time corrected for serial transfer time (10 bits per
+    byte at the model's baud rate).
     """
 
     kind = "ld06"
@@ -31,6 +32,7 @@ class Ld06Driver(Driver):
         self.link = SerialLink(port, baud or BAUD[model], self.health)
         self.link.on_connect = self._on_connect
         self.clock = ClockEstimator()
+        self.stamper = HostStamper(self.clock)
         self._reset_stream()
 
     def _reset_stream(self) -> None:
@@ -43,6 +45,7 @@ class Ld06Driver(Driver):
     def _on_connect(self) -> None:
         self._reset_stream()
         self.clock.reset()  # the device clock restarts with the device
+        self.stamper.reset()
 
     def open(self) -> None:
         self.link.open()
@@ -91,9 +94,8 @@ class Ld06Driver(Driver):
                 new_rev, angles, p.distance_mm / 1000.0, p.intensity.astype(np.float32), t_points, t_host
             )
             if scan is not None:
-                scan.t_host = self.clock.to_host(int(scan.t_device), fallback=scan.t_host)
                 self.health.received += 1
-                out.append(scan)
+                out.extend(self.stamper.push(scan))
         return out
 
     def close(self) -> None:

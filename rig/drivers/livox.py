@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from rig.clock import ClockEstimator
+from rig.clock import ClockEstimator, HostStamper
 from rig.drivers import livox_protocol as lp
 from rig.drivers.base import DeviceError, Driver, Message, ParseError, now_ns
 from rig.messages import ImuSample, Scan
@@ -40,6 +40,7 @@ class LivoxDriver(Driver):
         self.period_ns = round(scan_period_s * 1e9)
         self.recv_buffer_bytes = recv_buffer_bytes
         self.clock = ClockEstimator()
+        self.stamper = HostStamper(self.clock)
         self._sockets: list[socket.socket] = []
         self._last_cnt: dict[int, int] = {}
         self._grid0: int | None = None
@@ -80,7 +81,7 @@ class LivoxDriver(Driver):
         ready, _, _ = select.select(self._sockets, [], [], timeout_s)
         out: list[Message] = []
         for sock in ready:
-            while True:
+            for _ in range(256):  # bounded: a busy stream must not keep read() from returning
                 try:
                     data = sock.recv(65536)
                 except BlockingIOError:
@@ -104,8 +105,7 @@ class LivoxDriver(Driver):
         if p.data_type == lp.DATA_IMU:
             assert p.gyro is not None and p.acc is not None
             self.health.received += 1
-            t_host = self.clock.to_host(p.timestamp_ns, fallback=t_arrival)
-            return [ImuSample(p.gyro, p.acc, t_host, p.timestamp_ns, f"{self.name}/imu")]
+            return self.stamper.push(ImuSample(p.gyro, p.acc, t_arrival, p.timestamp_ns, f"{self.name}/imu"))
         out: list[Message] = []
         if self._grid0 is None:  # scan k holds packets stamped in [grid0 + k P, grid0 + (k+1) P)
             self._grid0 = p.timestamp_ns - self.period_ns // 4
@@ -113,7 +113,7 @@ class LivoxDriver(Driver):
         if index != self._scan_index:
             scan = self._finish()
             if scan is not None:
-                out.append(scan)
+                out.extend(self.stamper.push(scan))
             self._scan_index, self._scan_start, self._scan_arrival = index, p.timestamp_ns, t_arrival
         self._parts.append((p.points, p.reflectivity, p.timestamp_ns + p.point_offsets_ns()))
         return out
@@ -130,7 +130,7 @@ class LivoxDriver(Driver):
             points[keep].astype(np.float32),
             ((t[keep] - stamp) * 1e-9).astype(np.float32),
             refl[keep].astype(np.float32),
-            t_host=self.clock.to_host(stamp, fallback=self._scan_arrival),
+            t_host=self._scan_arrival,  # the stamper replaces it from the clock estimate
             t_device=stamp,
             lidar_id=self.name,
         )

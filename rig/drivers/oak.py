@@ -17,7 +17,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from rig.clock import ClockEstimator
+from rig.clock import ClockEstimator, HostStamper
 from rig.drivers.base import DeviceError, Driver, Message, now_ns
 from rig.messages import Frame, ImuSample
 
@@ -128,7 +128,8 @@ class OakDriver(Driver):
     """An OAK (or anything speaking :class:`OakSource`): frames and IMU samples, stamped.
 
     ``t_host`` is depthai's host-synced stamp when the source gives one, else the device stamp
-    mapped through the driver's own clock estimate (fed with device stamp / arrival pairs).
+    mapped through the driver's own clock estimate (fed with device stamp / arrival pairs; messages
+    wait in a :class:`HostStamper` for its first second).
     """
 
     kind = "oak"
@@ -137,6 +138,7 @@ class OakDriver(Driver):
         super().__init__(name)
         self.source = source
         self.clock = ClockEstimator()
+        self.stamper = HostStamper(self.clock)
         self._device_id = ""
 
     @classmethod
@@ -165,17 +167,14 @@ class OakDriver(Driver):
         for p in self.source.get(timeout_s):
             self.health.packets += 1
             self.clock.add(p.t_device, p.t_arrival)
-            t_host = (
-                p.t_host_synced
-                if p.t_host_synced is not None
-                else self.clock.to_host(p.t_device, p.t_arrival)
-            )
+            t_host = p.t_arrival if p.t_host_synced is None else p.t_host_synced
             if p.image is not None:
-                out.append(Frame(p.image, t_host, p.t_device, self.name))
+                message: Message = Frame(p.image, t_host, p.t_device, self.name)
             else:
                 assert p.gyro is not None and p.acc is not None
-                out.append(ImuSample(p.gyro, p.acc, t_host, p.t_device, f"{self.name}/imu"))
+                message = ImuSample(p.gyro, p.acc, t_host, p.t_device, f"{self.name}/imu")
             self.health.received += 1
+            out.extend([message] if p.t_host_synced is not None else self.stamper.push(message))
         return out
 
     def close(self) -> None:

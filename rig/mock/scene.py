@@ -8,9 +8,10 @@ outlasts it.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -120,3 +121,18 @@ def slice_2d(scan: Scan, n_bins: int = 450, max_elevation_deg: float = 2.0) -> t
     ranges[~hit] = 0.0
     intensity[hit] = 200.0
     return ranges, intensity
+
+
+def latest_slice(scans: Iterator[tuple[int, Scan]]) -> Callable[[int], tuple[np.ndarray, np.ndarray]]:
+    """``revolution(t_rel_ns)``: the 2D slice of the newest scan at that time (for a fake 2D LiDAR)."""
+    state: dict[str, Any] = {"next": next(scans, None)}
+    empty = (np.zeros(450), np.zeros(450))
+    state["current"] = slice_2d(state["next"][1]) if state["next"] is not None else empty
+
+    def revolution(t_rel_ns: int) -> tuple[np.ndarray, np.ndarray]:
+        while state["next"] is not None and state["next"][0] <= t_rel_ns:
+            state["current"] = slice_2d(state["next"][1])
+            state["next"] = next(scans, None)
+        return state["current"]
+
+    return revolution

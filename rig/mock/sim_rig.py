@@ -5,13 +5,14 @@
 - 2D LiDAR: a horizontal slice of the same scans as LD06 bytes on a pty (:class:`FakeSerialLidar`,
   optional corrupted bytes and unplug) → LD06 driver.
 
-Topics are the session defaults (``/camera/...``, ``/lidar/points``, ``/imu/data``) plus
-``/scan2d/points``, so a recording of a scene reads like the scene's own session.
+The LiDAR fakes run in a child process (:class:`DeviceProcess`) like real devices; the fake OAK
+is a source object inside the OAK driver. Topics are the session defaults (``/camera/...``,
+``/lidar/points``, ``/imu/data``) plus ``/scan2d/points``, so a recording of a scene reads like the
+scene's own session.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,65 +20,42 @@ from typing import Any
 from rig.drivers.ld06 import Ld06Driver
 from rig.drivers.livox import LivoxDriver
 from rig.drivers.oak import OakDriver
-from rig.messages import Scan
 from rig.mock.device_clock import DriftingClock
+from rig.mock.device_process import LD06_RATE_HZ, DeviceProcess
 from rig.mock.fake_oak import FakeOakSource
-from rig.mock.livox_sender import FakeLivox
-from rig.mock.scene import Scene, slice_2d
-from rig.mock.serial_lidar import FakeSerialLidar
+from rig.mock.scene import Scene
 from rig.record import Source
 from rig.session.writer import DEFAULT_TOPICS
 
 SCAN2D_TOPIC = "/scan2d/points"
-LD06_RATE_HZ = 10.0
-
-
-class _LatestSlice:
-    """The 2D slice of the newest scene scan at a given time (for the fake serial LiDAR)."""
-
-    def __init__(self, scans: Iterator[tuple[int, Scan]]) -> None:
-        self._scans = scans
-        self._next = next(scans, None)
-        self._current = slice_2d(self._next[1]) if self._next is not None else None
-
-    def __call__(self, t_rel_ns: int) -> Any:
-        while self._next is not None and self._next[0] <= t_rel_ns:
-            self._current = slice_2d(self._next[1])
-            self._next = next(self._scans, None)
-        return self._current
 
 
 @dataclass
 class SimRig:
-    """Fake devices and the drivers that read them. Call :meth:`start_devices` after the drivers opened."""
+    """Fake devices and the drivers that read them. :meth:`start_devices` runs after the drivers opened."""
 
     scene: Scene
     sources: list[Source]
-    livox: FakeLivox | None
-    serial: FakeSerialLidar | None
+    devices: DeviceProcess | None
     oak: FakeOakSource | None
     expected_rates_hz: dict[str, float] = field(default_factory=dict)
 
     def start_devices(self) -> None:
-        if self.livox is not None:
-            driver = next(s.driver for s in self.sources if isinstance(s.driver, LivoxDriver))
-            ports = driver.bound_ports
-            self.livox.point_port = ports[0]
-            self.livox.imu_port = ports[1] if len(ports) > 1 else ports[0]
-            self.livox.start()
+        livox = next((s.driver for s in self.sources if isinstance(s.driver, LivoxDriver)), None)
+        if self.devices is not None and livox is not None:
+            ports = livox.bound_ports
+            self.devices.send_to(ports[0], ports[-1])
 
     def stop_devices(self) -> None:
-        for dev in (self.livox, self.serial):
-            if dev is not None:
-                dev.stop()
+        if self.devices is not None:
+            self.devices.stop()
 
     def ground_truth(self) -> dict[str, Any]:
-        """What the fakes did: corrupted packets, unplug intervals, clocks."""
+        """What the fakes did: corrupted packets, unplug intervals, clocks, expected rates."""
         return {
             "scene": str(self.scene.dir),
             "oak_clock": None if self.oak is None else vars(self.oak.clock_spec),
-            "serial_corrupted_packets": None if self.serial is None else self.serial.corrupted_packets,
-            "serial_unplugged": None if self.serial is None else self.serial.unplugged,
+            **(self.devices.report if self.devices is not None else {}),
             "expected_rates_hz": self.expected_rates_hz,
         }
 
@@ -93,13 +71,13 @@ def build_sim_rig(
 ) -> SimRig:
     """Fake devices fed by the scene in ``scene_dir`` (``session.mcap``) and their drivers.
 
-    The serial LiDAR's pty link is created in ``work_dir``. Rates: camera, LiDAR and IMU at the
-    scene's rates; the 2D LiDAR at 10 Hz.
+    Starts the device process (the serial LiDAR's pty link is created in ``work_dir``). Rates:
+    camera, LiDAR and IMU at the scene's rates; the 2D LiDAR at 10 Hz.
     """
     scene = Scene(scene_dir)
     rates = scene.rates()
     sources: list[Source] = []
-    oak = livox = serial = None
+    oak = devices = None
     expected: dict[str, float] = {}
     if "image" in scene.streams:
         oak = FakeOakSource(scene.frames(), clock=DriftingClock(oak_drift_ppm), jitter_ms=oak_jitter_ms)
@@ -107,19 +85,22 @@ def build_sim_rig(
         sources.append(Source(OakDriver("camera", oak), topics, scene.camera()))
         expected[DEFAULT_TOPICS["image"]] = rates["image"]
     if "points" in scene.streams:
-        imu = scene.imu() if "imu" in scene.streams else None
-        livox = FakeLivox(scene.scans(), imu)
+        has_imu = "imu" in scene.streams
         period = 1.0 / rates["points"] if rates["points"] > 0 else 0.1
         topics = {"points": DEFAULT_TOPICS["points"], "imu": DEFAULT_TOPICS["imu"]}
-        sources.append(Source(LivoxDriver("lidar", "127.0.0.1", 0, 0 if imu else None, period), topics))
+        sources.append(Source(LivoxDriver("lidar", "127.0.0.1", 0, 0 if has_imu else None, period), topics))
         expected[DEFAULT_TOPICS["points"]] = rates["points"]
-        if imu is not None:
+        if has_imu:
             expected[DEFAULT_TOPICS["imu"]] = rates["imu"]
         link = Path(work_dir) / "ttyLD06"
-        serial = FakeSerialLidar(
-            link, _LatestSlice(scene.scans()), "ld06", LD06_RATE_HZ, corrupt_rate, unplug_at_s, unplug_for_s
+        devices = DeviceProcess(
+            scene.dir,
+            link,
+            corrupt_rate=corrupt_rate,
+            unplug_at_s=unplug_at_s,
+            unplug_for_s=unplug_for_s,
         )
-        serial.start()
+        devices.start()
         sources.append(Source(Ld06Driver("scan2d", str(link)), {"points": SCAN2D_TOPIC}))
         expected[SCAN2D_TOPIC] = LD06_RATE_HZ
-    return SimRig(scene, sources, livox, serial, oak, expected)
+    return SimRig(scene, sources, devices, oak, expected)

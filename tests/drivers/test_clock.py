@@ -29,10 +29,13 @@ def test_exact_line_and_window() -> None:
     dev = np.arange(100, dtype=np.int64) * 10_000_000
     fit = fit_lower_envelope(dev, dev + 1_000_000)
     assert fit.to_host(5_000_000_000) == 5_001_000_000 and abs(fit.drift_ppm) < 1e-9
-    est = ClockEstimator(window_s=1.0, min_pairs=3)
+    est = ClockEstimator(window_s=0.5, min_pairs=3, bin_s=0.02)
     assert est.estimate() is None and est.to_host(5, fallback=9) == 9
-    for d in dev:
+    for d in dev:  # 10 ms apart: two pairs per 20 ms bin, the faster one kept
         est.add(int(d), int(d) + 1_000)
-    assert est.estimate().n_pairs == 101 or est.estimate().n_pairs <= 101
+        est.add(int(d) + 1, int(d) + 1 + 500)
+    fit = est.estimate()
+    assert fit.n_pairs == 25  # a 0.5 s window of 20 ms bins
+    assert fit.to_host(990_000_000) == 990_000_500
     est.reset()
     assert est.estimate() is None
