@@ -48,6 +48,9 @@ def sim(
     preview: Path | None = typer.Option(
         None, "--preview", help="Also write a PNG: a frame with a sweep on it."
     ),
+    preview_at: float | None = typer.Option(
+        None, "--preview-at", help="Time (s) of the preview frame (default: mid-run)."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON summary object on stdout."),
 ) -> None:
     """Simulate a robot run through a scene: OUT_DIR/session.mcap and OUT_DIR/ground_truth/."""
@@ -91,7 +94,7 @@ def sim(
         task = bar.add_task("sim", total=None)
         summary = record(run, out_dir, lambda done, total: bar.update(task, completed=done, total=total))
     if preview is not None:
-        cv2.imwrite(str(preview), preview_image(run))
+        cv2.imwrite(str(preview), preview_image(run, preview_at))
         summary["preview"] = str(preview)
     if json_out:
         emit_json(summary)

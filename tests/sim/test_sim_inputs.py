@@ -90,10 +90,11 @@ def test_unknown_preset_gives_one_line_error(tmp_path: Path) -> None:
     assert len(lines) == 1 and "unknown preset 'garage'" in lines[0] and "room, corridor, stairs" in lines[0]
 
 
-def test_same_seed_gives_identical_files_and_other_seed_differs(tmp_path: Path) -> None:
+def test_same_seed_gives_identical_files_scene_yaml_regenerates_other_seed_differs(tmp_path: Path) -> None:
     config = replace(SimConfig(seed=3).quick(), duration_s=1.0)
     for name, cfg in (("a", config), ("b", config), ("c", replace(config, seed=4))):
         simulate(cfg, tmp_path / name)
+    assert SimConfig.from_scene_yaml(tmp_path / "a" / "ground_truth" / "scene.yaml") == config
     files = [
         "session.mcap",
         *(f"ground_truth/{f}" for f in ("mesh.ply", "trajectory.tum", "calib.yaml", "scene.yaml")),
