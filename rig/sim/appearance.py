@@ -34,6 +34,15 @@ def luminance(rgb: np.ndarray) -> np.ndarray:
     return rgb @ np.array([0.2126, 0.7152, 0.0722])
 
 
+def _texels(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Nearest texels ``(N, 3)`` of ``image`` ``(H, W, 3)`` at texture coordinates ``(N, 2)``
+    (v up, wrapping)."""
+    h, w = image.shape[:2]
+    col = np.clip(np.floor(uv[:, 0] % 1.0 * w), 0, w - 1).astype(np.int64)
+    row = np.clip(np.floor((1.0 - uv[:, 1] % 1.0) * h), 0, h - 1).astype(np.int64)
+    return image[row, col]
+
+
 class Appearance(Protocol):
     """Surface properties of a scene mesh, looked up at ray hits."""
 
@@ -111,22 +120,14 @@ class MeshAppearance:
         else:
             self.vertex_rgb = np.full((len(mesh.vertices), 3), 0.7)
 
-    def _texels(self, uv: np.ndarray) -> np.ndarray:
-        """Nearest texels ``(N, 3)`` at texture coordinates ``(N, 2)`` (v up, wrapping)."""
-        assert self.image is not None
-        h, w = self.image.shape[:2]
-        col = np.clip(np.floor(uv[:, 0] % 1.0 * w), 0, w - 1).astype(np.int64)
-        row = np.clip(np.floor((1.0 - uv[:, 1] % 1.0) * h), 0, h - 1).astype(np.int64)
-        return self.image[row, col]
-
     def _interpolate(self, values: np.ndarray, hits: Hits) -> np.ndarray:
         corners = values[self.faces[hits.face]]  # (N, 3, C)
         u, v = hits.bary[:, :1], hits.bary[:, 1:]
         return (1.0 - u - v) * corners[:, 0] + u * corners[:, 1] + v * corners[:, 2]
 
     def _albedo(self, hits: Hits) -> np.ndarray:
-        if self.uv is not None:
-            return self._texels(self._interpolate(self.uv, hits))
+        if self.image is not None and self.uv is not None:
+            return _texels(self.image, self._interpolate(self.uv, hits))
         return self._interpolate(self.vertex_rgb, hits)
 
     def colour(self, hits: Hits, footprint_m: np.ndarray) -> np.ndarray:
@@ -138,7 +139,11 @@ class MeshAppearance:
 
     def coloured_mesh(self, mesh: trimesh.Trimesh) -> trimesh.Trimesh:
         out = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-        rgb = self._texels(self.uv) if self.uv is not None else self.vertex_rgb
+        rgb = (
+            _texels(self.image, self.uv)
+            if self.image is not None and self.uv is not None
+            else self.vertex_rgb
+        )
         if self.shaded:
             rgb = np.clip(rgb * shade(out.vertex_normals)[:, None], 0.0, 1.0)
         out.visual.vertex_colors = np.round(rgb * 255).astype(np.uint8)

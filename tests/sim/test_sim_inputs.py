@@ -130,3 +130,28 @@ def test_imu_measures_the_ground_truth_motion(quick_run: Path) -> None:
     midpoint_gyro = (gyro[:-1] + gyro[1:]) / 2
     assert np.abs(midpoint_gyro - omega).mean() < 0.01  # noise 0.003 rad/s per sample
     assert np.linalg.norm(accel, axis=1).mean() == pytest.approx(9.81, abs=0.1)
+
+
+def test_textured_mesh_is_sampled_through_its_uv_map(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from rig.sim.world import mesh_world
+
+    # A quad on the plane z = 0 whose texture is red on the left half (u < 0.5), blue on the right.
+    texture = np.zeros((8, 8, 3), dtype=np.uint8)
+    texture[:, :4, 0] = 255
+    texture[:, 4:, 2] = 255
+    quad = trimesh.Trimesh(
+        vertices=[[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
+        faces=[[0, 1, 2], [0, 2, 3]],
+        visual=trimesh.visual.TextureVisuals(
+            uv=[[0, 0], [1, 0], [1, 1], [0, 1]], image=Image.fromarray(texture)
+        ),
+        process=False,
+    )
+    quad.export(tmp_path / "quad.obj")
+    world = mesh_world(tmp_path / "quad.obj")
+    origins = np.array([[0.25, 0.5, 1.0], [0.75, 0.5, 1.0]])
+    hits = world.raycaster.cast(origins, np.array([[0.0, 0.0, -1.0]] * 2))
+    colour = world.appearance.colour(hits, np.zeros(2))
+    assert np.allclose(colour, [[1, 0, 0], [0, 0, 1]], atol=0.01)  # the mesh's own colours, unshaded
