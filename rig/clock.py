@@ -57,14 +57,19 @@ def lower_hull(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def fit_lower_envelope(
-    t_device: np.ndarray, t_host: np.ndarray, min_span_s: float = 1.0, max_drift_ppm: float = 1000.0
+    t_device: np.ndarray,
+    t_host: np.ndarray,
+    min_span_s: float = 5.0,
+    offset_window_s: float = 2.0,
+    max_drift_ppm: float = 1000.0,
 ) -> ClockEstimate:
     """Fit the clock line under ``(N,)`` int64 pairs (N ≥ 1).
 
     Over less than ``min_span_s`` of device time, or when the slope comes out beyond
-    ``max_drift_ppm`` (a burst of queued packets at start-up), only the offset is fitted (the
-    lowest pair): a drift cannot be told from jitter over a short span, and extrapolating a wrong
-    one is worse than ignoring it.
+    ``max_drift_ppm`` (a burst of queued packets at start-up), only the offset is fitted: the
+    lowest pair of the last ``offset_window_s``. Over a short span a drift cannot be told from
+    jitter (3 ms of jitter over 1 s is 3000 ppm), and extrapolating a wrong one is worse than
+    ignoring it (50 ppm over a 2 s window is 0.1 ms).
     """
     order = np.argsort(t_device, kind="stable")
     dev = np.asarray(t_device, dtype=np.int64)[order]
@@ -74,7 +79,8 @@ def fit_lower_envelope(
     y = (host - dev).astype(np.float64)
     hull = lower_hull(x, y)
     slope = 0.0
-    intercept = float(y.min())
+    recent = x >= x[-1] - offset_window_s * 1e9
+    intercept = float(y[recent].min())
     if len(hull) >= 2 and x[-1] - x[0] >= min_span_s * 1e9:
         # The LP optimum (min total height above the line) lies on the hull edge spanning mean(x).
         k = int(np.clip(np.searchsorted(x[hull], x.mean()), 1, len(hull) - 1))
@@ -82,7 +88,7 @@ def fit_lower_envelope(
         slope = (y[b] - y[a]) / (x[b] - x[a])
         intercept = y[a] - slope * x[a]
         if abs(slope) * 1e6 > max_drift_ppm:
-            slope, intercept = 0.0, float(y.min())
+            slope, intercept = 0.0, float(y[recent].min())
     delay = y - (intercept + slope * x)
     return ClockEstimate(float(intercept), float(slope * 1e6), ref, len(x), float(np.median(delay)))
 
@@ -187,6 +193,9 @@ class HostStamper:
             return out
         return []
 
-    def reset(self) -> None:
-        """Drop held messages (the device went away)."""
-        self._held.clear()
+    def flush(self) -> list[Any]:
+        """Release every held message, stamped from the estimate as it is (at the end of a recording)."""
+        out, self._held = self._held, []
+        for m in out:
+            m.t_host = self.clock.to_host(int(m.t_device), fallback=m.t_host)
+        return out

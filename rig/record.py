@@ -58,6 +58,7 @@ def build_sources(config: RigConfig) -> list[Source]:
                 int(o.get("point_port", 56301)),
                 o.get("imu_port", 56401),
                 float(o.get("scan_period_s", 0.1)),
+                split=o.get("split", "time"),
             )
         elif d.kind == "ld06":
             driver = Ld06Driver(d.name, str(o["port"]), o.get("model", "ld06"), o.get("baud"))
@@ -177,6 +178,11 @@ class Recording:
             stop.set()
             for t in threads:
                 t.join(5)
+            for s in self.sources:
+                for m in s.driver.drain():
+                    topic = s.topics.get(_role(m))
+                    if topic is not None:
+                        self.recorder.put(m, topic, s.driver.name)
             elapsed = time.monotonic() - self.started
             self.recorder.close(self.device_status())
             return {**self.summary(), "duration_s": elapsed}

@@ -26,7 +26,7 @@ from rig.errors import InputError
 KINDS = ("oak", "livox", "ld06", "rplidar", "ouster")
 _DEVICE_KEYS = {
     "oak": {"device_id", "fps", "size", "imu_hz"},
-    "livox": {"host", "point_port", "imu_port", "scan_period_s"},
+    "livox": {"host", "point_port", "imu_port", "scan_period_s", "split"},
     "ld06": {"port", "model", "baud"},
     "rplidar": {"port", "model", "baud"},
     "ouster": {"pcap", "meta", "hostname"},

@@ -73,6 +73,10 @@ class Driver(ABC):
     def read(self, timeout_s: float = 0.1) -> list[Message]:
         """Messages that became available within ``timeout_s`` (possibly none)."""
 
+    def drain(self) -> list[Message]:
+        """Messages still held back (waiting for a clock estimate), released at the end of a run."""
+        return []
+
     def stop(self) -> None:
         """Stop streaming."""
         return None

@@ -45,13 +45,15 @@ class Ld06Driver(Driver):
     def _on_connect(self) -> None:
         self._reset_stream()
         self.clock.reset()  # the device clock restarts with the device
-        self.stamper.reset()
 
     def open(self) -> None:
         self.link.open()
 
     def device_id(self) -> str:
         return self.port
+
+    def drain(self) -> list[Message]:
+        return self.stamper.flush()
 
     def clock_estimate(self) -> dict[str, Any] | None:
         est = self.clock.estimate()
@@ -69,6 +71,7 @@ class Ld06Driver(Driver):
         if was_connected and not self.link.connected:
             self.assembler.discard()
             self.health.dropped += 1  # the revolution in progress is lost
+            return self.stamper.flush()  # stamped with the estimate so far: the clock restarts
         if not data:
             return []
         crc_before = self.parser.crc_errors

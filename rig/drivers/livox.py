@@ -17,10 +17,11 @@ from rig.messages import ImuSample, Scan
 class LivoxDriver(Driver):
     """Receives a Mid-360's UDP stream on ``host``:``point_port`` / ``imu_port``.
 
-    The sensor streams from power-on once configured to send to this host. Points are grouped into
-    scans on a fixed grid of ``scan_period_s`` of device time, anchored a quarter period before the
-    first packet (so the rate is exact and a slightly fast device clock does not push a packet
-    into the wrong scan); ``udp_cnt`` gaps are counted as dropped packets. ``t_host`` comes from
+    The sensor streams from power-on once configured to send to this host. With ``split="time"``
+    points are grouped into scans on a fixed grid of ``scan_period_s`` of device time, anchored
+    half a percent of a period before the first packet (so the rate is exact); with
+    ``split="frame"`` a scan ends when the header's ``frame_cnt`` changes (the mock sender numbers
+    its scans so). ``udp_cnt`` gaps are counted as dropped packets. ``t_host`` comes from
     the online clock estimate, fed with each packet's last-point device time and its arrival.
     """
 
@@ -34,8 +35,12 @@ class LivoxDriver(Driver):
         imu_port: int | None = lp.IMU_PORT,
         scan_period_s: float = 0.1,
         recv_buffer_bytes: int = 8 << 20,
+        split: str = "time",
     ) -> None:
         super().__init__(name)
+        if split not in ("time", "frame"):
+            raise ValueError(f"split must be 'time' or 'frame', got {split!r}")
+        self.split = split
         self.host, self.point_port, self.imu_port = host, point_port, imu_port
         self.period_ns = round(scan_period_s * 1e9)
         self.recv_buffer_bytes = recv_buffer_bytes
@@ -70,6 +75,9 @@ class LivoxDriver(Driver):
     def device_id(self) -> str:
         port = self.bound_ports[0] if self._sockets else self.point_port
         return f"livox@{self.host}:{port}"
+
+    def drain(self) -> list[Message]:
+        return self.stamper.flush()
 
     def clock_estimate(self) -> dict[str, Any] | None:
         est = self.clock.estimate()
@@ -107,9 +115,12 @@ class LivoxDriver(Driver):
             self.health.received += 1
             return self.stamper.push(ImuSample(p.gyro, p.acc, t_arrival, p.timestamp_ns, f"{self.name}/imu"))
         out: list[Message] = []
-        if self._grid0 is None:  # scan k holds packets stamped in [grid0 + k P, grid0 + (k+1) P)
-            self._grid0 = p.timestamp_ns - self.period_ns // 4
-        index = (p.timestamp_ns - self._grid0) // self.period_ns
+        if self.split == "frame":
+            index = p.frame_cnt
+        else:
+            if self._grid0 is None:  # scan k holds packets stamped in [grid0 + k P, grid0 + (k+1) P)
+                self._grid0 = p.timestamp_ns - self.period_ns // 200
+            index = (p.timestamp_ns - self._grid0) // self.period_ns
         if index != self._scan_index:
             scan = self._finish()
             if scan is not None:

@@ -158,6 +158,9 @@ class OakDriver(Driver):
     def device_id(self) -> str:
         return self._device_id
 
+    def drain(self) -> list[Message]:
+        return self.stamper.flush()
+
     def clock_estimate(self) -> dict[str, Any] | None:
         est = self.clock.estimate()
         return None if est is None else est.as_dict()

@@ -88,7 +88,11 @@ def build_sim_rig(
         has_imu = "imu" in scene.streams
         period = 1.0 / rates["points"] if rates["points"] > 0 else 0.1
         topics = {"points": DEFAULT_TOPICS["points"], "imu": DEFAULT_TOPICS["imu"]}
-        sources.append(Source(LivoxDriver("lidar", "127.0.0.1", 0, 0 if has_imu else None, period), topics))
+        sources.append(
+            Source(
+                LivoxDriver("lidar", "127.0.0.1", 0, 0 if has_imu else None, period, split="frame"), topics
+            )
+        )
         expected[DEFAULT_TOPICS["points"]] = rates["points"]
         if has_imu:
             expected[DEFAULT_TOPICS["imu"]] = rates["imu"]

@@ -83,7 +83,7 @@ def test_sigkill_leaves_a_file_rig_info_reads_and_calls_truncated(scene_dir: Pat
     assert not info(fixed)["truncated"]
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, pytest.param(signal.SIGINT, marks=pytest.mark.slow)])
 def test_sigterm_and_sigint_finish_the_file(scene_dir: Path, tmp_path: Path, sig: signal.Signals) -> None:
     out = tmp_path / "stopped.mcap"
     proc = _start(scene_dir, out)
