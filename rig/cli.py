@@ -173,7 +173,7 @@ def record(
             summary = _record(Recording(build_sources(cfg), out, {"rig_yaml": cfg.raw}, options), duration)
     except DeviceError as exc:
         console.print(f"[bold red]device error:[/] {exc}", highlight=False)
-        raise typer.Exit(1) from exc
+        raise SystemExit(1) from exc
     if summary.get("error"):
         console.print(f"[bold red]recording stopped:[/] {summary['error']}", highlight=False)
     if json_out:
@@ -223,7 +223,7 @@ def check(
             status = "[green]ok[/]" if e["ok"] else f"[red]FAIL[/] {e.get('error', '')}"
             console.print(f"{name} ({e['kind']}): {status}  {e['messages']} messages", highlight=False)
     if not all(e["ok"] for e in report.values()):
-        raise typer.Exit(1)
+        raise SystemExit(1)  # typer.Exit's code is lost in the non-standalone entry point
 
 
 @app.command()

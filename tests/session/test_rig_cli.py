@@ -1,0 +1,80 @@
+"""The ``rig`` commands: list, check (against a mock LD06), config errors, replay."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rig import InputError
+from rig.mock.serial_lidar import FakeSerialLidar
+from rig.record_config import parse_config
+
+BIN = Path(sys.executable).parent
+
+
+def rig(*args: object, timeout: float = 60) -> subprocess.CompletedProcess:
+    return subprocess.run([BIN / "rig", *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
+
+def test_list_json_without_devices() -> None:
+    result = rig("list", "--json")
+    assert result.returncode == 0, result.stderr
+    found = json.loads(result.stdout)
+    assert found["usb"] == [] and found["oak"] == []  # no USB devices on this machine
+    assert isinstance(found["serial_ports"], list)
+
+
+def test_check_opens_a_mock_ld06_and_reports_health(tmp_path: Path) -> None:
+    def revolution(t_rel_ns: int):
+        return np.full(450, 3.0), np.full(450, 80.0)
+
+    with FakeSerialLidar(tmp_path / "ttyLD", revolution, "ld06", 10.0) as fake:
+        config = tmp_path / "rig.yaml"
+        config.write_text(f"devices:\n  - {{name: scan2d, kind: ld06, port: {fake.link}}}\n")
+        result = rig("check", "--config", config, "--messages", 2, "--timeout", 5, "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout.splitlines()[-1])
+    assert report["ok"] and report["devices"]["scan2d"]["messages"] >= 2
+
+
+def test_check_reports_a_missing_device(tmp_path: Path) -> None:
+    config = tmp_path / "rig.yaml"
+    config.write_text("devices:\n  - {name: rp, kind: rplidar, port: /dev/does-not-exist}\n")
+    result = rig("check", "--config", config, "--json")
+    assert result.returncode == 1
+    report = json.loads(result.stdout)
+    assert not report["ok"] and "/dev/does-not-exist" in report["devices"]["rp"]["error"]
+
+
+def test_bad_config_is_one_line_naming_the_field(tmp_path: Path) -> None:
+    config = tmp_path / "rig.yaml"
+    config.write_text("devices:\n  - {name: a, kind: ld06}\n")
+    result = rig("record", "--config", config, "--out", tmp_path / "x.mcap", "--duration", 1)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "devices[0]" in result.stderr and "port" in result.stderr
+    with pytest.raises(InputError, match=r"devices\[1\]\.kind"):
+        parse_config({"devices": [{"name": "a", "kind": "oak"}, {"name": "b", "kind": "velodyne"}]})
+    with pytest.raises(InputError, match="unknown option"):
+        parse_config({"devices": [{"name": "a", "kind": "livox", "baud": 3}]})
+    cfg = parse_config({"devices": [{"name": "cam", "kind": "oak", "topics": {"image": "/img"}}]})
+    assert cfg.devices[0].topics == {"image": "/img", "camera_info": "/cam/camera_info", "imu": "/cam/imu"}
+    result = rig("record", "--out", tmp_path / "x.mcap")
+    assert result.returncode == 2 and "--config" in result.stderr
+
+
+def test_info_and_replay_json(tmp_path: Path) -> None:
+    from tests.rig.test_session import write_session
+
+    path = tmp_path / "s.mcap"
+    write_session(path, frames=4, scans=2)
+    report = json.loads(rig("info", path, "--json").stdout)
+    assert report["topics"]["/camera/image/compressed"]["count"] == 4
+    assert set(report) >= {"topics", "duration_s", "errors", "truncated"}
+    result = rig("replay", path, "--rate", 0, "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["messages"] == 4 + 2 + 1 + 1
+    missing = rig("info", tmp_path / "nope.mcap")
+    assert missing.returncode == 2 and "no such session file" in " ".join(missing.stderr.split())
