@@ -16,6 +16,7 @@ from rig import trajectory_cli
 from rig.cli_support import run_app, version_callback
 from rig.sim import cli as sim_cli
 from slam_bridge import cli as slam_cli
+from splat import cli as splat_cli
 
 app = typer.Typer(
     name="lts",
@@ -32,6 +33,7 @@ app.command("sim")(sim_cli.sim)
 app.command("eval")(eval_command)
 app.add_typer(slam_cli.app, name="slam")
 app.add_typer(calib_cli.app, name="calibrate")
+app.add_typer(splat_cli.bench_app, name="bench")
 
 
 @app.callback()

@@ -12,11 +12,11 @@ from pathlib import Path
 from types import ModuleType
 
 CSRC = Path(__file__).parent / "csrc"
-HEADER = CSRC / "triangle_math.h"
+HEADERS = [CSRC / "triangle_math.h", CSRC / "triangle_setup.h", CSRC / "cpu_ops.h"]
 # -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
 # kernel's skip/stop decisions match the reference exactly.
-CPU_FLAGS = ["-O3", "-march=native", "-ffp-contract=off", "-std=c++17"]
-CUDA_FLAGS = ["-O3", "--use_fast_math", "-std=c++17"]
+CPU_FLAGS = ["-O3", "-march=native", "-ffp-contract=off"]
+CUDA_FLAGS = ["-O3", "--fmad=false"]
 
 
 class BackendUnavailableError(RuntimeError):
@@ -67,7 +67,7 @@ def _load(target: str, sources: list[Path], cuda: bool) -> ModuleType:
 
     flags = CPU_FLAGS + (CUDA_FLAGS if cuda else [])
     digest = hashlib.sha256()
-    for part in [HEADER, *sources]:
+    for part in [*HEADERS, *sources]:
         digest.update(part.read_bytes())
     digest.update(" ".join([*flags, torch.__version__, platform.python_version(), _cpu_model()]).encode())
     name = f"lts_raster_{target}_{digest.hexdigest()[:12]}"
@@ -100,7 +100,7 @@ def _load(target: str, sources: list[Path], cuda: bool) -> ModuleType:
 @cache
 def cpu_extension() -> ModuleType:
     """The C++/OpenMP rasteriser (compiled on first use)."""
-    return _load("cpu", [CSRC / "raster_cpu.cpp"], cuda=False)
+    return _load("cpu", [CSRC / "raster_cpu.cpp", CSRC / "setup_cpu.cpp"], cuda=False)
 
 
 @cache

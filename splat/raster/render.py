@@ -16,6 +16,7 @@ from splat.raster.extension import cpu_extension, cuda_extension
 from splat.raster.kernel import rasterize_kernel
 from splat.raster.project import Intrinsics, project_triangles
 from splat.raster.reference import rasterize_reference
+from splat.raster.setup_kernel import project_triangles_kernel
 from splat.raster.stats import ErrorStats, depth_error_stats, normal_error_stats
 
 Backend = Literal["auto", "cpu", "cuda", "reference"]
@@ -140,12 +141,15 @@ def render(
     _check("T_cam_world", T_cam_world, (4, 4), dtype)
     chosen = _select_backend(backend, device)
 
-    tris = project_triangles(vertices, faces, colors, opacities, sigma, T_cam_world, intr, near)
-    bins = bin_triangles(tris.bounds, intr.width, intr.height)
+    geometry = (vertices, faces, colors, opacities, sigma, T_cam_world, intr, near)
     if chosen == "reference":
+        tris = project_triangles(*geometry)
+        bins = bin_triangles(tris.bounds, intr.width, intr.height)
         images = rasterize_reference(tris.params, bins, intr.width, intr.height)
     else:
         ext = cpu_extension() if chosen == "cpu" else cuda_extension()
+        tris = project_triangles_kernel(*geometry, ext)
+        bins = bin_triangles(tris.bounds, intr.width, intr.height)
         images = rasterize_kernel(tris.params, tris.bounds, bins, intr.width, intr.height, ext)
 
     # -1 (no triangle) indexes the appended -1.

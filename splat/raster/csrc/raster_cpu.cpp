@@ -12,6 +12,7 @@
 #include <cmath>
 #include <vector>
 
+#include "cpu_ops.h"
 #include "triangle_math.h"
 
 namespace {
@@ -323,4 +324,7 @@ torch::Tensor backward(const torch::Tensor& params, const torch::Tensor& bounds,
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("forward", &forward, "triangle rasteriser forward (CPU)");
   m.def("backward", &backward, "triangle rasteriser backward (CPU)");
+  m.def("setup_cull", &lts_cpu::setup_cull, "visibility and depth key per face (CPU)");
+  m.def("setup_forward", &lts_cpu::setup_forward, "per-triangle kernel parameters (CPU)");
+  m.def("setup_backward", &lts_cpu::setup_backward, "backward of setup_forward (CPU)");
 }

@@ -14,6 +14,8 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #ifdef __CUDACC__
 #define LTS_HD __host__ __device__ __forceinline__
@@ -29,9 +31,60 @@ constexpr int kParams = 27;
 constexpr int kGrads = 26;  // every parameter but the support threshold
 constexpr int kLine = 0, kColor = 9, kInvDepth = 18, kOpacity = 21, kSigma = 22, kNormal = 23;
 
-LTS_HD float exponential(float a) { return expf(a); }
-LTS_HD double exponential(double a) { return exp(a); }
-LTS_HD float logarithm(float a) { return logf(a); }
+// exp and log for the window m^sigma = exp(sigma log m). libm's scalar calls dominate the per-pair
+// cost in float32, so float uses inlined Cephes polynomials (about 1 ulp for the arguments met
+// here: log of m in (0, ~1], exp of values <= 0); double keeps libm.
+LTS_HD uint32_t bits_of(float x) {
+  uint32_t b;
+  memcpy(&b, &x, sizeof b);
+  return b;
+}
+LTS_HD float float_of(uint32_t b) {
+  float x;
+  memcpy(&x, &b, sizeof x);
+  return x;
+}
+
+LTS_HD float exponential(float x) {
+  x = x < -87.0f ? -87.0f : (x > 88.0f ? 88.0f : x);
+  const float n = floorf(x * 1.44269504088896341f + 0.5f);
+  x = x - n * 0.693359375f + n * 2.12194440e-4f;
+  float y = 1.9875691500e-4f;
+  y = y * x + 1.3981999507e-3f;
+  y = y * x + 8.3334519073e-3f;
+  y = y * x + 4.1665795894e-2f;
+  y = y * x + 1.6666665459e-1f;
+  y = y * x + 5.0000001201e-1f;
+  y = y * x * x + x + 1.0f;
+  return y * float_of(static_cast<uint32_t>(static_cast<int>(n) + 127) << 23);  // y 2^n
+}
+LTS_HD double exponential(double x) { return exp(x); }
+LTS_HD float logarithm(float x) {
+  if (x < 1.17549435e-38f) return logf(x);  // subnormal
+  const uint32_t b = bits_of(x);
+  int e = static_cast<int>((b >> 23) & 0xffu) - 126;
+  float m = float_of((b & 0x807fffffu) | 0x3f000000u);  // x = m 2^e, m in [0.5, 1)
+  if (m < 0.707106781186547524f) {
+    e -= 1;
+    m = m + m - 1.0f;
+  } else {
+    m = m - 1.0f;
+  }
+  const float z = m * m;
+  float y = 7.0376836292e-2f;
+  y = y * m - 1.1514610310e-1f;
+  y = y * m + 1.1676998740e-1f;
+  y = y * m - 1.2420140846e-1f;
+  y = y * m + 1.4249322787e-1f;
+  y = y * m - 1.6668057665e-1f;
+  y = y * m + 2.0000714765e-1f;
+  y = y * m - 2.4999993993e-1f;
+  y = y * m + 3.3333331174e-1f;
+  y = y * m * z;
+  const float ef = static_cast<float>(e);
+  y += -2.12194440e-4f * ef - 0.5f * z;
+  return m + y + 0.693359375f * ef;
+}
 LTS_HD double logarithm(double a) { return log(a); }
 
 template <typename T>
