@@ -41,23 +41,26 @@ class SimRun:
     lidar: LidarModel
     imu: ImuModel
 
+    # The 1e-6 below absorbs the nanosecond rounding of trajectory stamps (2000 poses at 30 Hz
+    # end at 66.633333333 s, not 1999 / 30 s).
+
     @property
     def frame_times(self) -> np.ndarray:
         """True times ``(K,)`` (s) of the camera frames."""
-        return np.arange(int(np.floor(self.motion.duration_s * self.config.fps + 1e-9)) + 1) / self.config.fps
+        n = int(np.floor(self.motion.duration_s * self.config.fps + 1e-6)) + 1
+        return np.minimum(np.arange(n) / self.config.fps, self.motion.duration_s)
 
     @property
     def scan_times(self) -> np.ndarray:
         """True start times ``(J,)`` (s) of the LiDAR sweeps that end within the motion."""
-        n = int(np.floor(self.motion.duration_s * self.lidar.rate_hz + 1e-9))
+        n = int(np.floor(self.motion.duration_s * self.lidar.rate_hz + 1e-6))
         return np.arange(n) / self.lidar.rate_hz
 
     @property
     def imu_times(self) -> np.ndarray:
         """True times ``(I,)`` (s) of the IMU samples."""
-        return (
-            np.arange(int(np.floor(self.motion.duration_s * self.imu.rate_hz + 1e-9)) + 1) / self.imu.rate_hz
-        )
+        n = int(np.floor(self.motion.duration_s * self.imu.rate_hz + 1e-6)) + 1
+        return np.minimum(np.arange(n) / self.imu.rate_hz, self.motion.duration_s)
 
 
 def prepare(config: SimConfig) -> SimRun:

@@ -48,17 +48,17 @@ def _poses(n: int) -> np.ndarray:
 def test_user_mesh_and_timeless_trajectory_at_rate(tmp_path: Path) -> None:
     mesh = _box_room(tmp_path / "room.ply")
     traj_path = tmp_path / "traj.txt"
-    poses = _poses(13)
-    write_matrix_lines(Trajectory.from_poses(np.arange(13, dtype=np.int64), poses), traj_path)
+    poses = _poses(14)  # 13 / 30 s is not a whole number of nanoseconds
+    write_matrix_lines(Trajectory.from_poses(np.arange(14, dtype=np.int64), poses), traj_path)
     config = SimConfig(
         mesh=str(mesh), trajectory=str(traj_path), trajectory_rate_hz=30.0, width=64, height=48
     )
     summary = simulate(config, tmp_path / "out")
-    assert summary["frames"] == 13 and summary["scans"] == 4  # 0.4 s of poses
+    assert summary["frames"] == 14 and summary["scans"] == 4  # 0.43 s of poses
     gt = read_tum(tmp_path / "out" / "ground_truth" / "trajectory.tum")
     assert np.allclose(gt.poses, poses, atol=1e-9)  # frames at the trajectory's own poses
     frames = list(SessionReader(tmp_path / "out" / "session.mcap").frames(DEFAULT_TOPICS["image"]))
-    assert len(frames) == 13 and frames[0].image.std() > 10  # the vertex colours show
+    assert len(frames) == 14 and frames[0].image.std() > 10  # the vertex colours show
 
 
 def test_mesh_without_faces_is_named(tmp_path: Path) -> None:
