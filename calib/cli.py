@@ -32,11 +32,11 @@ app = typer.Typer(
 )
 
 
-def _merge_into(out: Path, camera: Any = None, **updates: Any) -> Any:
-    """Load ``out`` if it exists (keeping what this step does not change), apply the updates."""
+def _merge_into(base_path: Path | None, camera: Any = None, **updates: Any) -> Any:
+    """Load ``base_path`` if it exists (keeping what this step does not change), apply the updates."""
     from rig.calibration import Calibration, load_calibration
 
-    base = load_calibration(out) if out.exists() else None
+    base = load_calibration(base_path) if base_path is not None and base_path.exists() else None
     calibration = Calibration(camera if camera is not None else base.camera)
     if base is not None:
         calibration.T_cam_lidar, calibration.time_offset_s = base.T_cam_lidar, base.time_offset_s
@@ -159,4 +159,77 @@ def extrinsic(
         f"±{result.translation_std_m * 100:.1f} cm: {result.verdict}"
         + ("" if not result.reasons else " (" + "; ".join(result.reasons) + ")")
     )
+    console.print(f"wrote {out}")
+
+
+@app.command("time")
+def time_offset(
+    session: Path = typer.Argument(..., help="Session .mcap with camera frames and LiDAR scans or IMU."),
+    lidar_motion: str = typer.Option(
+        "auto", "--lidar-motion", help="LiDAR-clock motion: imu (built-in gyro), odometry (KISS-ICP) or auto."
+    ),
+    init: Path | None = typer.Option(
+        None, "--init", help="calib.yaml for the camera model if the session has none."
+    ),
+    out: Path | None = typer.Option(None, "--out", help="calib.yaml to update with the offset (when ok)."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
+) -> None:
+    """Camera-LiDAR time offset from motion (angular speed of camera vs LiDAR clock)."""
+    from calib.session_calib import calibrate_time, load_session
+    from rig.calibration import load_calibration, save_calibration
+    from rig.errors import InputError
+
+    data = load_session(session)
+    start = load_calibration(init) if init is not None else None
+    camera = data.camera or (start.camera if start else None)
+    if camera is None:
+        raise InputError("the session has no CameraInfo; give --init", path=session, field="camera_info")
+    result, _ = calibrate_time(data, camera, lidar_motion)
+    if out is not None:
+        updates = {"time_offset_s": result.time_offset_s} if result.verdict == "ok" else {}
+        base = out if out.exists() else init
+        save_calibration(_merge_into(base, camera=camera, quality={"time": result.to_json()}, **updates), out)
+    if json_out:
+        emit_json(result.to_json())
+        return
+    console.print(
+        f"time offset {result.time_offset_s * 1e3:+.2f} ms ± {result.std_s * 1e3:.2f} ms "
+        f"(correlation {result.correlation:.2f}, {result.extra.get('lidar_motion')}): {result.verdict}"
+        + ("" if not result.reasons else " (" + "; ".join(result.reasons) + ")")
+    )
+
+
+@app.command("session")
+def session_command(
+    session: Path = typer.Argument(..., help="Session .mcap (also: lts calibrate SESSION ...)."),
+    out: Path = typer.Option(..., "--out", help="calib.yaml to write."),
+    init: Path | None = typer.Option(
+        None, "--init", help="calib.yaml with a rough T_cam_lidar (enables the targetless extrinsic)."
+    ),
+    lidar_motion: str = typer.Option("auto", "--lidar-motion", help="imu, odometry or auto (see `time`)."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
+) -> None:
+    """Calibrate what a session supports: camera model, time offset, targetless extrinsic (with --init)."""
+    from calib.session_calib import calibrate_session
+    from rig.calibration import load_calibration, save_calibration
+
+    start = load_calibration(init) if init is not None else None
+    calibration, report = calibrate_session(session, start, lidar_motion)
+    save_calibration(calibration, out)
+    summary = {
+        "T_cam_lidar": calibration.T_cam_lidar.tolist(),
+        "time_offset_s": calibration.time_offset_s,
+        "camera": calibration.camera.to_dict(),
+        **report,
+        "out": str(out),
+    }
+    if json_out:
+        emit_json(summary)
+        return
+    for step in ("time", "extrinsic"):
+        block = report[step]
+        console.print(
+            f"{step}: {block['verdict']}"
+            + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
+        )
     console.print(f"wrote {out}")

@@ -35,8 +35,9 @@ from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.transforms import make_transform, transform_points
 
-#: Images are processed at this scale of the full resolution.
-WORK_SCALE = 0.5
+#: Images wider than this are downscaled to it; blur and edge widths below are in pixels at
+#: this width and scale with the working image.
+WORK_WIDTH = 960
 #: (edge field sigma in working pixels, grid half-width in degrees, grid step in degrees).
 EDGE_STAGES = ((8.0, 3.0, 0.5), (4.0, 0.6, 0.2))
 MI_STAGE = (2.0, 0.3, 0.1)
@@ -119,9 +120,10 @@ def apply_increment(x: np.ndarray, T_init: np.ndarray) -> np.ndarray:
 
 @dataclass(eq=False)
 class _View:
-    """Per-pair data prepared for the objectives (all at WORK_SCALE)."""
+    """Per-pair data prepared for the objectives; ``gray`` is the image at ``scale``."""
 
     gray: np.ndarray
+    scale: float
     points: np.ndarray
     intensity: np.ndarray
     depth_edges: np.ndarray
@@ -131,11 +133,12 @@ class _View:
 def _sample(
     image: np.ndarray, camera: CameraModel, T: np.ndarray, points: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Bilinear samples of ``image`` (at WORK_SCALE) at the projections of ``points`` ``(N, 3)``,
+    """Bilinear samples of ``image`` (a downscaled copy) at the projections of ``points`` ``(N, 3)``,
     and the mask ``(N,)`` of points that land in the image."""
     pixels = camera.project(transform_points(T, points))
     inside = camera.in_image(pixels)
-    q = (pixels[inside] + 0.5) * WORK_SCALE - 0.5
+    scale = image.shape[1] / camera.width
+    q = (pixels[inside] + 0.5) * scale - 0.5
     return map_coordinates(image, [q[:, 1], q[:, 0]], order=1, mode="nearest"), inside
 
 
@@ -204,6 +207,11 @@ def _intensity_to_255(intensity: np.ndarray) -> np.ndarray:
     return np.clip(intensity / max(float(top), 1e-9) * 255.0, 0, 255)
 
 
+def _pixels(width_at_work_width: float, view: _View) -> float:
+    """A blur or edge width given at WORK_WIDTH, in pixels of this view's working image (>= 0.5)."""
+    return max(0.5, width_at_work_width * view.gray.shape[1] / WORK_WIDTH)
+
+
 def _prepare(pair: ExtrinsicPair, camera: CameraModel, T_init: np.ndarray) -> _View:
     gray = to_gray(pair.image)
     if gray.shape != (camera.height, camera.width):
@@ -211,7 +219,8 @@ def _prepare(pair: ExtrinsicPair, camera: CameraModel, T_init: np.ndarray) -> _V
             f"image is {gray.shape[1]}x{gray.shape[0]}, the camera model says {camera.width}x{camera.height}",
             field="image",
         )
-    small = cv2.resize(gray, None, fx=WORK_SCALE, fy=WORK_SCALE, interpolation=cv2.INTER_AREA)
+    scale = min(1.0, WORK_WIDTH / camera.width)
+    small = cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) if scale < 1 else gray
     cloud = pair.cloud
     # Points that could land in the image near the initial guess (margin for the search range).
     margin = -0.1 * camera.width
@@ -223,6 +232,7 @@ def _prepare(pair: ExtrinsicPair, camera: CameraModel, T_init: np.ndarray) -> _V
 
     return _View(
         gray=small,
+        scale=scale,
         points=cloud.points[near],
         intensity=_intensity_to_255(cloud.intensity[near]),
         depth_edges=near_view(edges.depth),
@@ -263,7 +273,7 @@ def refine_extrinsic(
     x = np.zeros(6)
     edge_init = edge_final = 0.0
     for sigma, half, step in EDGE_STAGES:
-        fields = [edge_field(v.gray, sigma) for v in views]
+        fields = [edge_field(v.gray, _pixels(sigma, v)) for v in views]
 
         def edge_cost(y: np.ndarray, fields: list[np.ndarray] = fields) -> float:
             return _edge_cost(y, T_init, camera, views, fields)
@@ -274,9 +284,9 @@ def refine_extrinsic(
         edge_final = -edge_cost(x)
 
     sigma, half, step = MI_STAGE
-    blurred = [cv2.GaussianBlur(v.gray, (0, 0), sigma).astype(np.float32) for v in views]
+    blurred = [cv2.GaussianBlur(v.gray, (0, 0), _pixels(sigma, v)).astype(np.float32) for v in views]
     x = _grid_search(lambda y: _mi_cost(y, T_init, camera, views, blurred), x, half, step)
-    fine = [cv2.GaussianBlur(v.gray, (0, 0), MI_FINE_SIGMA).astype(np.float32) for v in views]
+    fine = [cv2.GaussianBlur(v.gray, (0, 0), _pixels(MI_FINE_SIGMA, v)).astype(np.float32) for v in views]
     bounds = [(xi - LOCAL_ROT_DEG, xi + LOCAL_ROT_DEG) for xi in x[:3]] + [
         (-LOCAL_TRANS_DM, LOCAL_TRANS_DM)
     ] * 3

@@ -1,0 +1,130 @@
+"""Angular speed of the rig over time, seen by the camera and by the LiDAR.
+
+The magnitude of the angular velocity does not depend on the sensor frame, so the two signals
+can be compared without knowing the extrinsic rotation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+from scipy.ndimage import median_filter
+from scipy.spatial.transform import Rotation
+
+from calib.boards import to_gray
+from rig.camera import CameraModel
+from rig.messages import Frame, ImuSample, Scan
+
+#: Frames this far apart are compared (a longer baseline steadies the essential matrix).
+FRAME_GAP = 2
+MAX_FEATURES = 400
+MIN_TRACKS = 20
+#: Rotations above this between compared frames (rad) are decomposition failures, not motion.
+MAX_PAIR_ROTATION = 0.3
+#: Spikes left by bad essential matrices are removed with a running median of this length.
+MEDIAN_WINDOW = 5
+#: Scans are thinned to about this many points before odometry (KISS-ICP voxelises them anyway).
+ODOMETRY_POINTS = 6000
+#: RANSAC threshold of the essential matrix, in normalised image units (about 1 px / focal).
+_LK_PARAMS = {"winSize": (21, 21), "maxLevel": 3}
+
+
+def _relative_rotation(gray_a: np.ndarray, gray_b: np.ndarray, camera: CameraModel) -> np.ndarray | None:
+    """Rotation ``(3, 3)`` from frame a to frame b (``R_b_a``), or None without enough tracks."""
+    corners = cv2.goodFeaturesToTrack(gray_a, MAX_FEATURES, 0.01, 7)
+    if corners is None or len(corners) < MIN_TRACKS:
+        return None
+    tracked, status, _ = cv2.calcOpticalFlowPyrLK(gray_a, gray_b, corners, None, **_LK_PARAMS)
+    good = status.ravel() == 1
+    if good.sum() < MIN_TRACKS:
+        return None
+    xa = camera.normalized_coordinates(corners.reshape(-1, 2)[good])
+    xb = camera.normalized_coordinates(tracked.reshape(-1, 2)[good])
+    finite = np.all(np.isfinite(xa), axis=1) & np.all(np.isfinite(xb), axis=1)
+    xa, xb = xa[finite], xb[finite]
+    if len(xa) < MIN_TRACKS:
+        return None
+    threshold = 1.0 / camera.fx
+    E, inliers = cv2.findEssentialMat(xa, xb, np.eye(3), cv2.RANSAC, 0.999, threshold)
+    if E is None or E.shape != (3, 3):
+        return None
+    _, R, _, _ = cv2.recoverPose(E, xa, xb, np.eye(3), mask=inliers)
+    return R
+
+
+def camera_angular_speed(frames: Sequence[Frame], camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+    """Angular speed (rad/s) of the camera from feature tracks and essential matrices.
+
+    Returns times ``(K,)`` (s, host clock, midpoints of frame pairs ``FRAME_GAP`` apart) and speeds
+    ``(K,)``; pairs without enough tracks are left out.
+    """
+    grays = [to_gray(f.image) for f in frames]
+    stamps = np.array([f.t_host for f in frames], dtype=np.int64)
+    times, speeds = [], []
+    for i in range(len(frames) - FRAME_GAP):
+        j = i + FRAME_GAP
+        R = _relative_rotation(grays[i], grays[j], camera)
+        dt = (stamps[j] - stamps[i]) * 1e-9
+        if R is None or dt <= 0:
+            continue
+        angle = Rotation.from_matrix(R).magnitude()
+        if angle > MAX_PAIR_ROTATION:
+            continue
+        times.append((stamps[i] + (stamps[j] - stamps[i]) / 2) * 1e-9)
+        speeds.append(angle / dt)
+    if len(speeds) >= MEDIAN_WINDOW:
+        speeds = median_filter(np.asarray(speeds), MEDIAN_WINDOW, mode="nearest")
+    return np.asarray(times), np.asarray(speeds)
+
+
+def lidar_poses(scans: Sequence[Scan]) -> tuple[np.ndarray, np.ndarray]:
+    """KISS-ICP odometry: pose times ``(J,)`` (s, host clock) and poses ``(J, 4, 4)``.
+
+    KISS-ICP de-skews each sweep to the middle of its point times, so that is when its pose holds.
+    """
+    from kiss_icp.config import KISSConfig
+    from kiss_icp.kiss_icp import KissICP
+
+    config = KISSConfig()
+    ranges = np.concatenate(
+        [np.linalg.norm(s.points[:: max(1, len(s) // 500)], axis=1) for s in scans[:20]] or [[1.0]]
+    )
+    config.data.max_range = float(np.percentile(ranges, 99)) * 1.5
+    # KISS-ICP's own default (range / 100), kept within what suits rooms and streets.
+    config.mapping.voxel_size = float(np.clip(config.data.max_range / 100, 0.05, 1.0))
+    odometry = KissICP(config)
+    times, poses = [], []
+    for scan in scans:
+        if len(scan) < 100:
+            continue
+        rel = np.asarray(scan.point_time_s, dtype=np.float64)
+        span = rel.max() - rel.min()
+        normalised = (rel - rel.min()) / span if span > 0 else np.zeros_like(rel)
+        stride = max(1, len(scan) // ODOMETRY_POINTS)
+        odometry.register_frame(np.asarray(scan.points[::stride], dtype=np.float64), normalised[::stride])
+        times.append(scan.t_host * 1e-9 + (rel.min() + rel.max()) / 2)
+        poses.append(np.array(odometry.last_pose))
+    return np.asarray(times), np.asarray(poses).reshape(-1, 4, 4)
+
+
+def lidar_angular_speed(scans: Sequence[Scan]) -> tuple[np.ndarray, np.ndarray]:
+    """Angular speed (rad/s) from KISS-ICP odometry: midpoint times ``(J - 1,)`` and speeds."""
+    times, poses = lidar_poses(scans)
+    if len(times) < 2:
+        return np.zeros(0), np.zeros(0)
+    rel = np.einsum("nji,njk->nik", poses[:-1, :3, :3], poses[1:, :3, :3])
+    speeds = Rotation.from_matrix(rel).magnitude() / np.diff(times)
+    return (times[:-1] + times[1:]) / 2, speeds
+
+
+def imu_angular_speed(samples: Sequence[ImuSample]) -> tuple[np.ndarray, np.ndarray]:
+    """Angular speed (rad/s) from gyro samples: times ``(I,)`` (s, host clock) and speeds ``(I,)``.
+
+    For an IMU built into the LiDAR (Livox, Ouster, the virtual rig) this is the LiDAR clock's
+    motion signal, and far less noisy than odometry differences.
+    """
+    times = np.array([s.t_host for s in samples], dtype=np.float64) * 1e-9
+    speeds = np.array([np.linalg.norm(s.angular_velocity) for s in samples], dtype=np.float64)
+    return times, speeds
