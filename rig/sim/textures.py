@@ -40,15 +40,15 @@ class Material:
 
 #: The materials procedural scenes are made of; a face's material is an index into this tuple.
 MATERIALS: tuple[Material, ...] = (
-    Material("plaster", (0.80, 0.76, 0.68), "noise", 2.0, 0.35, 0.70),
+    Material("plaster", (0.80, 0.76, 0.68), "noise", 2.0, 0.55, 0.70),
     Material("tiles", (0.55, 0.52, 0.48), "tiles", 2.0, 0.30, 0.45),
-    Material("ceiling", (0.88, 0.88, 0.86), "noise", 2.0, 0.15, 0.80),
+    Material("ceiling", (0.88, 0.88, 0.86), "noise", 2.0, 0.30, 0.80),
     Material("wood", (0.55, 0.36, 0.20), "planks", 1.0, 0.35, 0.35),
     Material("fabric", (0.25, 0.35, 0.55), "weave", 0.5, 0.40, 0.25),
     Material("cardboard", (0.65, 0.50, 0.32), "noise", 1.0, 0.45, 0.50),
     Material("metal", (0.45, 0.46, 0.50), "noise", 0.5, 0.20, 0.90),
     Material("bricks", (0.62, 0.30, 0.22), "bricks", 2.0, 0.30, 0.40),
-    Material("concrete", (0.58, 0.58, 0.56), "noise", 2.0, 0.40, 0.55),
+    Material("concrete", (0.58, 0.58, 0.56), "noise", 2.0, 0.55, 0.55),
 )
 MATERIAL_IDS = {m.name: i for i, m in enumerate(MATERIALS)}
 
@@ -60,12 +60,11 @@ def fractal_noise(rng: np.random.Generator, size: int, beta: float = 1.6) -> np.
     seams, and the 1/f spectrum gives detail at every scale.
     """
     white = rng.standard_normal((size, size))
-    f = np.fft.fftfreq(size)
-    radius = np.hypot(f[:, None], f[None, :])
+    radius = np.hypot(np.fft.fftfreq(size)[:, None], np.fft.rfftfreq(size)[None, :])
     radius[0, 0] = 1.0
-    spectrum = np.fft.fft2(white) / radius ** (beta / 2)  # power ∝ amplitude²
+    spectrum = np.fft.rfft2(white) / radius ** (beta / 2)  # power ∝ amplitude²
     spectrum[0, 0] = 0.0
-    noise = np.real(np.fft.ifft2(spectrum))
+    noise = np.fft.irfft2(spectrum, s=(size, size))
     return noise / np.abs(noise).max()
 
 
