@@ -157,7 +157,8 @@ def record(
             from rig.record import build_sources
             from rig.record_config import load_config
 
-            cfg = load_config(config)  # type: ignore[arg-type]
+            assert config is not None
+            cfg = load_config(config)
             rec = cfg.recorder
             options = {
                 k: v

@@ -104,11 +104,18 @@ class ClockEstimator:
         bin_s: device-time bin within which only the fastest pair is kept.
         min_pairs: :meth:`estimate` is None until this many bins hold pairs.
         refit_s: device time between refits on :meth:`add` (the fit is O(N) in Python).
+        min_span_s: device time the pairs must span before a drift is fitted (else offset only).
     """
 
     def __init__(
-        self, window_s: float = 60.0, bin_s: float = 0.02, min_pairs: int = 10, refit_s: float = 0.25
+        self,
+        window_s: float = 60.0,
+        bin_s: float = 0.02,
+        min_pairs: int = 10,
+        refit_s: float = 0.25,
+        min_span_s: float = 5.0,
     ) -> None:
+        self.min_span_s = min_span_s
         self.window_ns = int(window_s * 1e9)
         self.bin_ns = max(1, int(bin_s * 1e9))
         self.min_pairs = min_pairs
@@ -143,7 +150,7 @@ class ClockEstimator:
 
     def _refit(self) -> None:
         pairs = np.asarray(self._pairs, dtype=np.int64)
-        self._estimate = fit_lower_envelope(pairs[:, 1], pairs[:, 2])
+        self._estimate = fit_lower_envelope(pairs[:, 1], pairs[:, 2], min_span_s=self.min_span_s)
         self._fitted_at = int(pairs[:, 1].max())
         self._stale = False
 
@@ -199,3 +206,7 @@ class HostStamper:
         for m in out:
             m.t_host = self.clock.to_host(int(m.t_device), fallback=m.t_host)
         return out
+
+
+#: ``clock:`` keys accepted in ``rig.yaml`` (the :class:`ClockEstimator` arguments).
+CLOCK_OPTIONS = ("window_s", "bin_s", "min_pairs", "refit_s", "min_span_s")

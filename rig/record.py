@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from rig.camera import CameraModel
+from rig.clock import ClockEstimator
 from rig.drivers.base import DeviceError, Driver
 from rig.messages import Frame, ImuSample, Scan
 from rig.record_config import RigConfig
@@ -42,6 +43,7 @@ def build_sources(config: RigConfig) -> list[Source]:
     sources = []
     for d in config.devices:
         o = d.options
+        clock = ClockEstimator(**config.clock)
         if d.kind == "oak":
             size = tuple(o.get("size", (640, 400)))
             driver: Driver = OakDriver.from_device(
@@ -50,6 +52,7 @@ def build_sources(config: RigConfig) -> list[Source]:
                 (int(size[0]), int(size[1])),
                 float(o.get("fps", 30)),
                 o.get("imu_hz", 200),
+                clock,
             )
         elif d.kind == "livox":
             driver = LivoxDriver(
@@ -59,9 +62,10 @@ def build_sources(config: RigConfig) -> list[Source]:
                 o.get("imu_port", 56401),
                 float(o.get("scan_period_s", 0.1)),
                 split=o.get("split", "time"),
+                clock=clock,
             )
         elif d.kind == "ld06":
-            driver = Ld06Driver(d.name, str(o["port"]), o.get("model", "ld06"), o.get("baud"))
+            driver = Ld06Driver(d.name, str(o["port"]), o.get("model", "ld06"), o.get("baud"), clock)
         elif d.kind == "rplidar":
             driver = RplidarDriver(d.name, str(o["port"]), o.get("model", "a1"), o.get("baud"))
         else:

@@ -21,6 +21,7 @@ from typing import Any
 
 import yaml
 
+from rig.clock import CLOCK_OPTIONS
 from rig.errors import InputError
 
 KINDS = ("oak", "livox", "ld06", "rplidar", "ouster")
@@ -33,6 +34,7 @@ _DEVICE_KEYS = {
 }
 _REQUIRED = {"ld06": {"port"}, "rplidar": {"port"}, "ouster": set()}
 ROLES = ("image", "camera_info", "points", "imu")
+RECORDER_OPTIONS = ("queue_size", "policy", "image_format", "chunk_mb", "min_free_mb")
 
 
 @dataclass
@@ -103,6 +105,12 @@ def parse_config(data: Any, source: str = "rig.yaml") -> RigConfig:
     for key in ("clock", "recorder"):
         if not isinstance(data.get(key, {}), dict):
             raise InputError("expected a mapping", path=source, field=key)
+    for key, allowed in (("clock", CLOCK_OPTIONS), ("recorder", RECORDER_OPTIONS)):
+        unknown = sorted(set(data.get(key, {})) - set(allowed))
+        if unknown:
+            raise InputError(
+                f"unknown option(s) {unknown}; expected some of {list(allowed)}", path=source, field=key
+            )
     return RigConfig(devices, dict(data.get("clock", {})), dict(data.get("recorder", {})), data)
 
 

@@ -24,14 +24,21 @@ class Ld06Driver(Driver):
 
     kind = "ld06"
 
-    def __init__(self, name: str, port: str, model: str = "ld06", baud: int | None = None) -> None:
+    def __init__(
+        self,
+        name: str,
+        port: str,
+        model: str = "ld06",
+        baud: int | None = None,
+        clock: ClockEstimator | None = None,
+    ) -> None:
         super().__init__(name)
         if model not in BAUD:
             raise ValueError(f"unknown LDROBOT model {model!r}; expected one of {sorted(BAUD)}")
         self.port = port
         self.link = SerialLink(port, baud or BAUD[model], self.health)
         self.link.on_connect = self._on_connect
-        self.clock = ClockEstimator()
+        self.clock = clock or ClockEstimator()
         self.stamper = HostStamper(self.clock)
         self._reset_stream()
 

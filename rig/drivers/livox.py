@@ -36,6 +36,7 @@ class LivoxDriver(Driver):
         scan_period_s: float = 0.1,
         recv_buffer_bytes: int = 8 << 20,
         split: str = "time",
+        clock: ClockEstimator | None = None,
     ) -> None:
         super().__init__(name)
         if split not in ("time", "frame"):
@@ -44,7 +45,7 @@ class LivoxDriver(Driver):
         self.host, self.point_port, self.imu_port = host, point_port, imu_port
         self.period_ns = round(scan_period_s * 1e9)
         self.recv_buffer_bytes = recv_buffer_bytes
-        self.clock = ClockEstimator()
+        self.clock = clock or ClockEstimator()
         self.stamper = HostStamper(self.clock)
         self._sockets: list[socket.socket] = []
         self._last_cnt: dict[int, int] = {}

@@ -156,10 +156,10 @@ class OakDriver(Driver):
 
     kind = "oak"
 
-    def __init__(self, name: str, source: OakSource) -> None:
+    def __init__(self, name: str, source: OakSource, clock: ClockEstimator | None = None) -> None:
         super().__init__(name)
         self.source = source
-        self.clock = ClockEstimator()
+        self.clock = clock or ClockEstimator()
         self.stamper = HostStamper(self.clock)
         self._device_id = ""
 
@@ -171,8 +171,10 @@ class OakDriver(Driver):
         size: tuple[int, int] = (640, 400),
         fps: float = 30.0,
         imu_hz: int | None = 200,
+        clock: ClockEstimator | None = None,
     ) -> OakDriver:
-        return cls(name, DepthaiSource(device_id, size, fps, imu_hz))
+        """A driver for a real OAK (the first found when ``device_id`` is None)."""
+        return cls(name, DepthaiSource(device_id, size, fps, imu_hz), clock)
 
     def open(self) -> None:
         self._device_id = self.source.open()

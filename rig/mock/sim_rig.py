@@ -80,7 +80,11 @@ def build_sim_rig(
     oak = devices = None
     expected: dict[str, float] = {}
     if "image" in scene.streams:
-        oak = FakeOakSource(scene.frames(), clock=DriftingClock(oak_drift_ppm), jitter_ms=oak_jitter_ms)
+        # No fixed latency: the camera's recorded host stamps then keep the scene's camera-LiDAR
+        # timing (the scene's own latencies are already in its host stamps).
+        oak = FakeOakSource(
+            scene.frames(), clock=DriftingClock(oak_drift_ppm), latency_ms=0.0, jitter_ms=oak_jitter_ms
+        )
         topics = {"image": DEFAULT_TOPICS["image"], "camera_info": DEFAULT_TOPICS["camera_info"]}
         sources.append(Source(OakDriver("camera", oak), topics, scene.camera()))
         expected[DEFAULT_TOPICS["image"]] = rates["image"]

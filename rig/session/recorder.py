@@ -36,6 +36,9 @@ class _Item:
     frame_id: str
 
 
+_IDLE: Any = object()  # what the writer loop sees when the queue stayed empty for a while
+
+
 class SessionRecorder:
     """Write messages to ``path`` from a background thread.
 
@@ -173,11 +176,11 @@ class SessionRecorder:
             try:
                 item = self._queue.get(timeout=0.1)
             except queue.Empty:
-                item = False  # type: ignore[assignment]
+                item = _IDLE
             if item is None:
                 return
             try:
-                if item is not False and self.error is None:
+                if item is not _IDLE and self.error is None:
                     self._write(item)
                 if self.bytes_written != last_bytes:  # a chunk went out: push it to the OS, check space
                     last_bytes = self.bytes_written
