@@ -94,14 +94,12 @@ class SimulatedScan:
         time_s: ``(N,)`` seconds after the sweep start.
         intensity: ``(N,)`` float32 return intensity in [0, 255].
         world_points: ``(N, 3)`` the true surface points hit (before range noise).
-        true_range: ``(N,)`` noise-free range (m).
     """
 
     points: np.ndarray
     time_s: np.ndarray
     intensity: np.ndarray
     world_points: np.ndarray
-    true_range: np.ndarray
 
 
 def simulate_scan(
@@ -133,4 +131,4 @@ def simulate_scan(
     measured = hits.distance + lidar.range_noise_m * rng.standard_normal(len(hits.distance))
     reflect = world.appearance.reflectivity(hits)
     intensity = np.clip(255.0 * reflect * np.sqrt(cos[keep]), 0.0, 255.0).astype(np.float32)
-    return SimulatedScan(dirs[keep] * measured[:, None], t[keep], intensity, hits.points, hits.distance)
+    return SimulatedScan(dirs[keep] * measured[:, None], t[keep], intensity, hits.points)

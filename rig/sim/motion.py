@@ -56,9 +56,9 @@ class Motion:
             t_s, trajectory.translations[last_of_stamp], trajectory.rotations[last_of_stamp], at_rest=False
         )
 
-    def positions(self, t_s: np.ndarray, order: int = 0) -> np.ndarray:
-        """Camera positions ``(N, 3)`` (or their ``order``-th time derivative) at times ``(N,)``."""
-        return self._position(np.asarray(t_s, dtype=np.float64), order)
+    def positions(self, t_s: np.ndarray) -> np.ndarray:
+        """Camera positions ``(N, 3)`` at times ``(N,)``."""
+        return self._position(np.asarray(t_s, dtype=np.float64))
 
     def rotations(self, t_s: np.ndarray) -> np.ndarray:
         """Camera-to-world rotations ``(N, 3, 3)`` at times ``(N,)``."""
