@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from rig.drivers.base import DeviceError, Driver, Message, now_ns
+from rig.errors import InputError
 from rig.messages import Scan
 
 
@@ -64,6 +65,46 @@ def read_pcap(pcap: str | Path, meta: str | Path, lidar_id: str = "ouster") -> I
                 yield scan
     finally:
         source.close()
+
+
+def read_packet_bag(
+    bag: str | Path,
+    packets_topic: str = "/os_node/lidar_packets",
+    metadata_topic: str = "/os_node/metadata",
+    lidar_id: str = "ouster",
+) -> Iterator[Scan]:
+    """Scans decoded from raw lidar packets in a ROS bag (``ouster_ros/PacketMsg``, ``buf``), with
+    the sensor metadata JSON from a ``std_msgs/String`` topic. ``t_host`` = the bag time of the
+    scan's first packet; only complete frames are returned."""
+    from ouster.sdk import core
+
+    from rig.session.foreign import raw_messages
+
+    bag = Path(bag)
+    meta = next((m for _, _, _, m in raw_messages(bag, {metadata_topic})), None)
+    if meta is None:
+        raise InputError("no sensor metadata in the bag", path=bag, field=metadata_topic)
+    info = core.SensorInfo(meta.data)
+    fmt, batcher, frame, lut = (
+        core.PacketFormat(info),
+        core.FrameBatcher(info),
+        core.LidarFrame(info),
+        core.XYZLut(info),
+    )
+    first_t = None
+    for _, _, t_log, msg in raw_messages(bag, {packets_topic}):
+        packet = core.LidarPacket(fmt)
+        buf = np.asarray(msg.buf, dtype=np.uint8)
+        if buf.size != packet.buf.size:
+            raise InputError(f"packet of {buf.size} bytes; the metadata says {packet.buf.size}", path=bag)
+        packet.buf[:] = buf
+        if batcher.batch(packet, frame):  # a packet of the next frame: the previous one is done
+            if frame.complete():
+                yield frame_to_scan(frame, lut, first_t or t_log, lidar_id)
+            first_t = None
+        first_t = first_t or t_log
+    if frame.complete():
+        yield frame_to_scan(frame, lut, first_t or 0, lidar_id)
 
 
 class OusterDriver(Driver):

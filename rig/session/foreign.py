@@ -43,7 +43,8 @@ class ForeignMessage:
     value: Any
 
 
-def _raw_messages(path: Path, topics: set[str]) -> Iterator[tuple[str, str, int, Any]]:
+def raw_messages(path: Path, topics: set[str]) -> Iterator[tuple[str, str, int, Any]]:
+    """``(topic, msgtype, log time ns, message)`` of ``topics`` in bag order (rosbags types)."""
     if path.is_file() and path.suffix == ".mcap":
         for m in SessionReader(path).messages(topics):
             yield m.topic, m.msgtype, m.t_host, m.msg
@@ -101,7 +102,7 @@ def read_foreign(path: str | Path, topic_map: dict[str, str]) -> Iterator[Foreig
     if missing:
         raise InputError(f"topic(s) {missing} not in the bag (it has {sorted(available)})", path=path)
     role_of = {topic: role for role, topic in topic_map.items()}
-    for topic, msgtype, t_log, msg in _raw_messages(path, set(role_of)):
+    for topic, msgtype, t_log, msg in raw_messages(path, set(role_of)):
         role = role_of[topic]
         stamp = rm.stamp_ns(msg) if hasattr(msg, "header") else None
         name = msgtype.rsplit("/", 1)[-1]

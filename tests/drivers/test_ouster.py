@@ -40,3 +40,16 @@ def test_driver_reads_pcap(real_data: Path) -> None:
         got = [m for _ in range(5) for m in driver.read()]
     assert len(got) == 3 and driver.device_id() == "122201000998"
     assert driver.health.received == 3
+
+
+def test_raw_packets_from_a_ros1_bag(real_data: Path) -> None:
+    from rig.drivers.ouster import read_packet_bag
+
+    bag = real_data / "ouster" / "512x10_raw.bag"
+    (scan,) = read_packet_bag(bag, "/os_node0/lidar_packets", "/os_node0/metadata")
+    # 32 packets of 16 columns: one full 128 x 512 frame (OS-0-128, 512x10); zero ranges dropped
+    assert len(scan) == 28751 and len(np.unique(scan.point_time_s)) > 400
+    r = np.linalg.norm(scan.points, axis=1)
+    assert r.min() > 0.1 and r.max() < 50  # an indoor capture
+    assert 0.095 < scan.point_time_s.max() < 0.1 and scan.t_device == 291159252580
+    assert scan.t_host // 10**9 == 1723828414  # the bag's receive time
