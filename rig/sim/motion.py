@@ -42,16 +42,17 @@ class Motion:
         self._rotation = RotationSpline(t_s - self._t0, Rotation.from_matrix(rotations))
 
     @classmethod
-    def from_trajectory(cls, trajectory: Trajectory) -> Motion:
-        """Spline through the poses of a trajectory (repeated stamps keep their last pose)."""
-        if len(trajectory) < 2:
-            raise InputError(
-                f"a trajectory needs at least 2 poses, got {len(trajectory)}", field="trajectory"
-            )
+    def from_trajectory(cls, trajectory: Trajectory, source: str | None = None) -> Motion:
+        """Spline through the poses of a trajectory (repeated stamps keep their last pose);
+        ``source`` names the file in errors."""
         last_of_stamp = np.append(np.diff(trajectory.t_ns) > 0, True)
         t_s = (trajectory.t_ns[last_of_stamp] - trajectory.t_ns[0]) * 1e-9
         if len(t_s) < 2:
-            raise InputError("all poses of the trajectory share one time stamp", field="trajectory")
+            raise InputError(
+                f"a trajectory needs at least 2 poses at distinct times, got {len(t_s)}",
+                path=source,
+                field="trajectory",
+            )
         return cls(
             t_s, trajectory.translations[last_of_stamp], trajectory.rotations[last_of_stamp], at_rest=False
         )

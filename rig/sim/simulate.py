@@ -68,9 +68,9 @@ def prepare(config: SimConfig) -> SimRun:
     seeds = np.random.SeedSequence(config.seed).spawn(2)
     rng_path, rng_clock = (np.random.default_rng(s) for s in seeds)
     if config.mesh is not None and config.trajectory is not None:
-        world = mesh_world(config.mesh)
         trajectory = read_trajectory(config.trajectory, rate_hz=config.trajectory_rate_hz)
-        motion = Motion.from_trajectory(trajectory)
+        motion = Motion.from_trajectory(trajectory, source=config.trajectory)  # before the slow mesh load
+        world = mesh_world(config.mesh)
         T_cam_lidar = DEFAULT_T_CAM_LIDAR
     else:
         preset = get_preset(config.preset)

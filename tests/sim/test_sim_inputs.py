@@ -74,7 +74,7 @@ def test_trajectory_with_one_pose_is_named(tmp_path: Path) -> None:
     mesh = _box_room(tmp_path / "room.ply")
     traj = tmp_path / "one.tum"
     traj.write_text("1.0 0 0 0.5 0 0 0 1\n")
-    with pytest.raises(InputError, match="at least 2 poses, got 1"):
+    with pytest.raises(InputError, match=r"one\.tum: trajectory: .*at least 2 poses.*, got 1"):
         prepare(SimConfig(mesh=str(mesh), trajectory=str(traj)))
 
 
