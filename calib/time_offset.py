@@ -14,9 +14,12 @@ from typing import Any
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy.ndimage import gaussian_filter1d
 from scipy.optimize import minimize_scalar
 
 GRID_STEP_S = 0.005
+#: Standard deviation (s) of the zero-lag smoothing of the LiDAR-clock signal.
+LIDAR_SMOOTHING_S = 0.02
 MAX_OFFSET_S = 0.5
 #: The camera's angular speed must vary by at least this (rad/s, standard deviation).
 MIN_SPEED_STD = 0.05
@@ -107,8 +110,15 @@ def estimate_time_offset(
 
     order = np.argsort(t_lidar)
     t_lidar, w_lidar = t_lidar[order], w_lidar[order]
-    spline = CubicSpline(t_lidar, w_lidar)
     span = (t_lidar[0], t_lidar[-1])
+    # An interpolating spline through noisy samples makes the fit cost rough in the offset; a
+    # symmetric (zero-lag) Gaussian smoothing on a uniform grid first keeps it smooth.
+    uniform_t = np.arange(span[0], span[1], GRID_STEP_S)
+    uniform_w = gaussian_filter1d(
+        np.interp(uniform_t, t_lidar, w_lidar), LIDAR_SMOOTHING_S / GRID_STEP_S, mode="nearest"
+    )
+    spline = CubicSpline(uniform_t, uniform_w)
+    span = (uniform_t[0], uniform_t[-1])
     # Coarse: normalised cross-correlation of both signals on a common uniform grid.
     grid = np.arange(max(t_cam[0], span[0]), min(t_cam[-1], span[1]), GRID_STEP_S)
     cam_grid = np.interp(grid, t_cam, w_cam)

@@ -1,0 +1,86 @@
+"""Virtual-rig sessions: time offset from motion, the whole session command, straight driving."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rig.calibration import Calibration, load_calibration, save_calibration
+
+from .test_targetless import perturb
+
+LTS = Path(sys.executable).parent / "lts"
+pytestmark = pytest.mark.slow
+
+
+def _simulate(out: Path, **options) -> Path:
+    sim_config = pytest.importorskip("rig.sim.config")
+    sim = pytest.importorskip("rig.sim.simulate")
+    sim.simulate(sim_config.SimConfig(**options), out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def room_session(tmp_path_factory) -> Path:
+    """The default 20 s room run (default noise), with its ground truth."""
+    return _simulate(tmp_path_factory.mktemp("room"), preset="room", seed=0)
+
+
+def _lts(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([LTS, *map(str, args)], capture_output=True, text=True, timeout=600)
+
+
+def test_time_offset_within_2_ms(room_session: Path) -> None:
+    truth = load_calibration(room_session / "ground_truth" / "calib.yaml").time_offset_s
+    result = _lts("calibrate", "time", room_session / "session.mcap", "--json")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["verdict"] == "ok", summary["reasons"]
+    assert abs(summary["time_offset_s"] - truth) < 0.002
+
+
+def test_session_command_writes_calibration(room_session: Path, tmp_path: Path) -> None:
+    truth = load_calibration(room_session / "ground_truth" / "calib.yaml")
+    init = tmp_path / "init.yaml"
+    save_calibration(
+        Calibration(truth.camera, perturb(truth.T_cam_lidar, np.random.default_rng(0)), 0.0), init
+    )
+    out = tmp_path / "calib.yaml"
+    start = time.monotonic()
+    result = _lts("calibrate", room_session / "session.mcap", "--out", out, "--init", init, "--json")
+    elapsed = time.monotonic() - start
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    written = load_calibration(out)
+    assert abs(written.time_offset_s - truth.time_offset_s) < 0.002
+    np.testing.assert_allclose(written.camera.K, truth.camera.K)
+    assert summary["extrinsic"]["verdict"] in ("ok", "poorly constrained")
+    assert written.quality["time"]["verdict"] == "ok"
+    print(f"session calibration took {elapsed:.1f} s; extrinsic: {summary['extrinsic']['verdict']}")
+
+
+def test_straight_drive_refuses_time_offset(room_session: Path, tmp_path: Path) -> None:
+    # Drive 1.8 m straight ahead from the room run's first pose, without turning.
+    first = np.loadtxt(room_session / "ground_truth" / "trajectory.tum", max_rows=1)
+    times = np.arange(0.0, 6.0, 1 / 30)
+    heading = np.array([0.996, 0.087, 0.0])
+    rows = [[t, *(first[1:4] + 0.3 * t * heading), *first[4:8]] for t in times]
+    trajectory = tmp_path / "straight.tum"
+    np.savetxt(trajectory, rows, fmt="%.9f")
+    run = _simulate(
+        tmp_path / "straight",
+        mesh=str(room_session / "ground_truth" / "mesh.ply"),
+        trajectory=str(trajectory),
+        seed=1,
+    )
+    result = _lts("calibrate", "time", run / "session.mcap", "--json")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["verdict"] == "poorly constrained"
+    assert summary["reasons"]

@@ -1,0 +1,78 @@
+"""Board-plane extrinsic: virtual-rig ground truth, degenerate pose sets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from calib.boards import BoardView, ChessboardTarget, detect_chessboard
+from calib.pointcloud_io import PointCloud
+from calib.target_based import BoardObservation, board_pose, calibrate_with_board
+from calib.targetless import pose_difference
+from rig.errors import InputError
+from rig.transforms import invert, make_transform
+
+from .synthetic import board_poses, board_scan, render_chessboard, sim_camera
+
+COLS, ROWS, SQUARE = 9, 6, 0.1
+#: Half the board's outline (one square of margin around the corners), about the corners' centre.
+HALF = ((COLS + 1) * SQUARE / 2, (ROWS + 1) * SQUARE / 2)
+#: The virtual rig's room-preset style extrinsic (LiDAR x forward, camera z forward).
+T_CAM_LIDAR = make_transform(
+    Rotation.from_euler("xyz", [-91, 1, -88], degrees=True).as_matrix(), [0.02, -0.09, -0.03]
+)
+
+
+def _observations(n: int, seed: int) -> list[BoardObservation]:
+    camera = sim_camera("pinhole")
+    rng = np.random.default_rng(seed)
+    corners_centre = ((COLS - 1) * SQUARE / 2, (ROWS - 1) * SQUARE / 2)
+    outline = (-SQUARE, COLS * SQUARE, -SQUARE, ROWS * SQUARE)  # board frame with the first corner at 0
+    target = ChessboardTarget(COLS, ROWS, SQUARE)
+    observations = []
+    for i, T_cam_board in enumerate(board_poses(n, 2.0, rng, corners_centre, max_tilt_deg=55)):
+        corners = detect_chessboard(render_chessboard(camera, T_cam_board, COLS, ROWS, SQUARE), COLS, ROWS)
+        if corners is None:
+            continue
+        estimated = board_pose(BoardView(str(i), corners, target.object_points()), camera)
+        points = board_scan(invert(T_CAM_LIDAR) @ T_cam_board, outline, rng, n_board=2000, noise_m=0.01)
+        observations.append(
+            BoardObservation(estimated, PointCloud(points, np.zeros(len(points), np.float32)), str(i))
+        )
+    return observations
+
+
+def _guess() -> np.ndarray:
+    delta = make_transform(
+        Rotation.from_rotvec(np.radians(2.0) * np.array([0.6, 0.8, 0.0])).as_matrix(), [0.08, -0.06, 0.0]
+    )
+    return delta @ T_CAM_LIDAR
+
+
+def test_virtual_rig_board_extrinsic_within_0p1_deg_and_1_cm() -> None:
+    observations = _observations(10, seed=0)
+    assert len(observations) >= 8
+    result = calibrate_with_board(observations, HALF, _guess())
+    rot, trans = pose_difference(result.T_cam_lidar, T_CAM_LIDAR)
+    assert rot < 0.1 and trans < 0.01, (rot, trans)
+    assert result.verdict == "ok", result.reasons
+    assert result.extra["plane_rms_m"] < 0.015
+    assert 0 < result.rotation_std_deg < 0.1 and 0 < result.translation_std_m < 0.01
+
+
+def test_single_board_pose_is_poorly_constrained() -> None:
+    observations = _observations(1, seed=0)
+    result = calibrate_with_board(observations, HALF, _guess())
+    assert result.verdict == "poorly constrained"
+    assert "1 pose" in result.reasons[0]
+    with pytest.raises(InputError, match="no initial guess"):
+        calibrate_with_board(observations, HALF, None)
+
+
+def test_parallel_boards_are_poorly_constrained() -> None:
+    observations = _observations(4, seed=2)
+    same_tilt = [BoardObservation(observations[0].T_cam_board, o.cloud, o.name) for o in observations[:1]] * 4
+    result = calibrate_with_board(same_tilt, HALF, _guess())
+    assert result.verdict == "poorly constrained"
+    assert "normals hardly differ" in result.reasons[0]

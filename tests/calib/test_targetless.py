@@ -1,0 +1,101 @@
+"""Targetless extrinsic refinement: degenerate input and the real PJLab LiDAR + camera pairs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from calib.pointcloud_io import PointCloud, read_point_cloud
+from calib.targetless import ExtrinsicPair, pose_difference, refine_extrinsic
+from rig.camera import CameraModel
+
+PAIRS = {"manual": ("0.png", "0.pcd"), "auto": ("calib.png", "calib.pcd")}
+
+
+def load_pjlab(root: Path, name: str) -> tuple[ExtrinsicPair, CameraModel, np.ndarray]:
+    """Image + cloud, camera model and reference ``T_cam_lidar`` of one PJLab pair."""
+    folder = root / "lidar_camera_pjlab" / name
+    intrinsic = json.loads((folder / "center_camera-intrinsic.json").read_text())["center_camera-intrinsic"][
+        "param"
+    ]
+    extrinsic = json.loads((folder / "top_center_lidar-to-center_camera-extrinsic.json").read_text())
+    T_ref = np.array(
+        extrinsic["top_center_lidar-to-center_camera-extrinsic"]["param"]["sensor_calib"]["data"]
+    )
+    image_name, cloud_name = PAIRS[name]
+    image = cv2.imread(str(folder / image_name))
+    # The JSON's img_dist_h says 1080 for "manual", but the image is 1200 tall: use the image.
+    camera = CameraModel(
+        "pinhole",
+        image.shape[1],
+        image.shape[0],
+        np.array(intrinsic["cam_K"]["data"]),
+        np.array(intrinsic["cam_dist"]["data"]).ravel(),
+    )
+    return ExtrinsicPair(image, read_point_cloud(folder / cloud_name)), camera, T_ref
+
+
+def perturb(T: np.ndarray, rng: np.random.Generator, deg: float = 2.0, metres: float = 0.10) -> np.ndarray:
+    """``T`` with its rotation turned by ``deg`` about a random axis and ``metres`` added to its
+    translation in a random direction."""
+    axis, shift = rng.normal(size=3), rng.normal(size=3)
+    out = T.copy()
+    out[:3, :3] = Rotation.from_rotvec(np.radians(deg) * axis / np.linalg.norm(axis)).as_matrix() @ T[:3, :3]
+    out[:3, 3] += metres * shift / np.linalg.norm(shift)
+    return out
+
+
+def test_empty_scan_is_poorly_constrained() -> None:
+    camera = CameraModel(
+        "pinhole", 320, 240, np.array([[250.0, 0, 160], [0, 250, 120], [0, 0, 1]]), np.zeros(0)
+    )
+    image = np.random.default_rng(0).integers(0, 255, (240, 320, 3), dtype=np.uint8)
+    T = np.eye(4)
+    result = refine_extrinsic(
+        [ExtrinsicPair(image, PointCloud(np.zeros((0, 3)), np.zeros(0, np.float32)))], camera, T
+    )
+    assert result.verdict == "poorly constrained"
+    assert "only 0 LiDAR points" in result.reasons[0]
+    np.testing.assert_array_equal(result.T_cam_lidar, T)
+
+
+def test_points_behind_the_camera_are_poorly_constrained() -> None:
+    camera = CameraModel(
+        "pinhole", 320, 240, np.array([[250.0, 0, 160], [0, 250, 120], [0, 0, 1]]), np.zeros(0)
+    )
+    image = np.zeros((240, 320), np.uint8)
+    behind = np.random.default_rng(0).uniform(-5, 5, (5000, 3)) - [0, 0, 10]
+    result = refine_extrinsic(
+        [ExtrinsicPair(image, PointCloud(behind, np.ones(5000, np.float32)))], camera, np.eye(4)
+    )
+    assert result.verdict == "poorly constrained"
+
+
+def _check_pair(real_data: Path, name: str, seed: int) -> None:
+    pair, camera, T_ref = load_pjlab(real_data, name)
+    T_init = perturb(T_ref, np.random.default_rng(seed))
+    result = refine_extrinsic([pair], camera, T_init)
+    rot, trans = pose_difference(result.T_cam_lidar, T_ref)
+    # Measured: 0.07–0.35° and 4–17 cm over several perturbations (see the README's calib section);
+    # a single frame of far structure does not pin the translation down, and the verdict says so
+    # through the translation spread.
+    assert rot < 0.5, rot
+    assert trans < 0.25, trans
+    assert result.mutual_information["final"] > result.mutual_information["init"]
+    assert result.translation_std_m > 0 and np.isfinite(result.rotation_std_deg)
+
+
+def test_real_pjlab_auto_pair(real_data) -> None:
+    _check_pair(real_data, "auto", seed=11)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["manual", "auto"])
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_real_pjlab_pairs_several_perturbations(real_data, name: str, seed: int) -> None:
+    _check_pair(real_data, name, seed)
