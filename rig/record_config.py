@@ -6,8 +6,8 @@ devices:
   - {name: lidar, kind: livox, host: 0.0.0.0, point_port: 56301, imu_port: 56401, scan_period_s: 0.1}
   - {name: scan2d, kind: ld06, port: /dev/ttyUSB0, model: ld19}
   - {name: rp, kind: rplidar, port: /dev/ttyUSB1, model: c1}
-  - {name: os, kind: ouster, pcap: rec.pcap, meta: rec.json}     # or hostname: os-1.local
-    topics: {points: /ouster/points}                               # optional per-device topics
+  - {name: os, kind: ouster, pcap: rec.pcap, meta: rec.json, topics: {points: /ouster/points}}
+    # ouster: or hostname: os-1.local; topics: optional, per role
 clock: {window_s: 60, min_pairs: 10}
 recorder: {queue_size: 512, policy: drop-newest, image_format: jpeg, chunk_mb: 1, min_free_mb: 64}
 ```

@@ -2,8 +2,8 @@
 
 Mock devices replay the simulated frames, scans and IMU samples in real time: each stream yields
 ``(t_rel_ns, message)`` with ``t_rel_ns`` the simulated host time since the first message of the
-session, repeating the session end to end (shifted by its span plus one period) when a recording
-outlasts it.
+session, repeating each stream (shifted by its count times its period) when a recording outlasts
+the session.
 """
 
 from __future__ import annotations
@@ -75,12 +75,11 @@ class Scene:
 
     def _loop(self, role: str) -> Iterator[tuple[int, object]]:
         info = self.streams[role]
-        # One lap lasts as long as the longest stream including its last period, so every stream
-        # keeps its rate across the seam (a 3 s scene at 30 Hz holds 90 frames: lap = 3.0 s).
-        lap_ns = max(
-            (s.last_t - self.t0 + s.period_ns for s in self.streams.values() if s.count > 1),
-            default=self.span_ns + 1,
-        )
+        # Each stream repeats after count x period, so its rate holds across the seam. Streams
+        # then shift against each other by under one period per lap (e.g. 91 frames at 30 Hz vs
+        # 601 IMU samples at 200 Hz): simulate a scene as long as the recording where the timing
+        # between streams matters beyond the first lap.
+        lap_ns = info.count * info.period_ns if info.count > 1 else self.span_ns + 1
         lap = 0
         while True:
             for m in self.reader.messages([info.topic]):

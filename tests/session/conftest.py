@@ -57,4 +57,16 @@ def write_scene(scene: Path, seconds: float = 3.0) -> Path:
 
 @pytest.fixture(scope="session")
 def scene_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 3 s synthetic scene (cheap: for the crash and signal tests)."""
     return write_scene(tmp_path_factory.mktemp("scene"))
+
+
+@pytest.fixture(scope="session")
+def virtual_rig_scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``lts sim --quick`` output: 3 s of the room preset, 160x120 at 30 Hz, rosette LiDAR, IMU."""
+    from rig.sim.config import SimConfig
+    from rig.sim.simulate import simulate
+
+    out = tmp_path_factory.mktemp("virtual_rig")
+    simulate(SimConfig().quick(), out)
+    return out

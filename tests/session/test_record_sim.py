@@ -30,10 +30,12 @@ def info_here(path: Path) -> dict:
     return json.loads(json.dumps(session_info(path)))
 
 
-def test_record_sim_rates_within_2_percent_and_crc_errors_counted(scene_dir: Path, tmp_path: Path) -> None:
+def test_record_sim_rates_within_2_percent_and_crc_errors_counted(
+    virtual_rig_scene: Path, tmp_path: Path
+) -> None:
     out = tmp_path / "s.mcap"
     result = rig(
-        "record", "--sim", scene_dir, "--out", out, "--duration", 5, "--corrupt-rate", 3e-4, "--json"
+        "record", "--sim", virtual_rig_scene, "--out", out, "--duration", 5, "--corrupt-rate", 3e-4, "--json"
     )
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)

@@ -78,3 +78,33 @@ def test_info_and_replay_json(tmp_path: Path) -> None:
     assert json.loads(result.stdout)["messages"] == 4 + 2 + 1 + 1
     missing = rig("info", tmp_path / "nope.mcap")
     assert missing.returncode == 2 and "no such session file" in " ".join(missing.stderr.split())
+
+
+def test_record_from_config_with_two_serial_lidars(tmp_path: Path) -> None:
+    def revolution(t_rel_ns: int):
+        return np.full(360, 2.5), np.full(360, 90.0)
+
+    ld = FakeSerialLidar(tmp_path / "ttyLD", revolution, "ld06", 10.0, corrupt_rate=1e-3)
+    rp = FakeSerialLidar(tmp_path / "ttyRP", revolution, "rplidar", 5.5)
+    out = tmp_path / "rec.mcap"
+    with ld, rp:
+        config = tmp_path / "rig.yaml"
+        config.write_text(
+            "devices:\n"
+            f"  - {{name: front, kind: ld06, port: {ld.link}}}\n"
+            f"  - {{name: back, kind: rplidar, port: {rp.link}, model: a1, topics: {{points: /back/scan}}}}\n"
+            "clock: {window_s: 30}\n"
+            "recorder: {queue_size: 64, chunk_mb: 0.25}\n"
+        )
+        result = rig("record", "--config", config, "--out", out, "--duration", 2.5, "--json")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["written"]["/front/points"] >= 12 and summary["written"]["/back/scan"] >= 8
+    assert (
+        summary["devices"]["front"]["crc_errors"] > 0
+        and summary["devices"]["back"]["device_id"] == rp.info.serial
+    )
+    report = json.loads(rig("info", out, "--json").stdout)
+    assert report["session"]["rig_yaml"]["clock"] == {"window_s": 30}
+    assert report["topics"]["/back/scan"]["count"] == summary["written"]["/back/scan"]
+    assert not report["truncated"]
