@@ -51,12 +51,28 @@ def _serial_ports() -> list[dict[str, Any]]:
 
 
 @app.command("list")
-def list_devices(json_out: bool = typer.Option(False, "--json", help="Print one JSON object.")) -> None:
+def list_devices(
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
+    reset_oak: bool = typer.Option(False, "--reset-oak", help="USB-reset every OAK first (a stuck device)."),
+) -> None:
     """Devices found: USB devices of interest (with their serial ports), OAK cameras, serial ports."""
     from rig.drivers.oak import list_oak_devices
     from rig.drivers.usb import list_usb_devices
 
+    reset = 0
+    if reset_oak:
+        from rig.drivers.base import DeviceError
+        from rig.drivers.usb import reset_oak as usb_reset_oak
+
+        try:
+            reset = usb_reset_oak()
+        except DeviceError as exc:
+            console.print(f"[bold red]device error:[/] {exc}", highlight=False)
+            raise SystemExit(1) from exc
+        console.print(f"reset {reset} OAK device(s)")
     found = {"usb": list_usb_devices(), "oak": list_oak_devices(), "serial_ports": _serial_ports()}
+    if reset_oak:
+        found["oak_reset"] = reset
     if json_out:
         emit_json(found)
         return
@@ -207,7 +223,12 @@ def check(
             deadline = time.monotonic() + timeout
             while entry["messages"] < messages and time.monotonic() < deadline:
                 entry["messages"] += len(d.read(0.1))
-            entry.update(ok=entry["messages"] >= messages, device_id=d.device_id(), health=d.health.as_dict())
+            entry.update(
+                ok=entry["messages"] >= messages,
+                device_id=d.device_id(),
+                health=d.health.as_dict(),
+                device=d.describe(),
+            )
         except (DeviceError, OSError) as exc:
             entry["error"] = str(exc)
         finally:

@@ -89,6 +89,10 @@ class Driver(ABC):
         """A stable id of the device (serial number, port or address)."""
         return self.name
 
+    def describe(self) -> dict[str, Any]:
+        """What the device says about itself (model, firmware, health), where it says anything."""
+        return {}
+
     def clock_estimate(self) -> dict[str, Any] | None:
         """The device→host clock estimate, when the device has a clock."""
         return None

@@ -75,8 +75,14 @@ def reset_oak(bus: int | None = None, address: int | None = None) -> int:
     """USB-reset OAK devices (all, or the one at ``bus``/``address``); returns how many were reset."""
     import usb.core
 
+    from rig.drivers.base import DeviceError
+
+    try:
+        found = list(usb.core.find(find_all=True, idVendor=0x03E7) or [])
+    except (usb.core.NoBackendError, usb.core.USBError) as exc:
+        raise DeviceError(f"cannot enumerate USB devices: {exc}") from exc
     count = 0
-    for d in usb.core.find(find_all=True, idVendor=0x03E7) or []:
+    for d in found:
         if bus is not None and (d.bus, d.address) != (bus, address):
             continue
         d.reset()
