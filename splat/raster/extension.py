@@ -12,7 +12,7 @@ from pathlib import Path
 from types import ModuleType
 
 CSRC = Path(__file__).parent / "csrc"
-HEADERS = [CSRC / "triangle_math.h", CSRC / "triangle_setup.h", CSRC / "cpu_ops.h"]
+HEADERS = [CSRC / name for name in ("triangle_math.h", "triangle_setup.h", "bins.h", "cpu_ops.h")]
 # -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
 # kernel's skip/stop decisions match the reference exactly.
 CPU_FLAGS = ["-O3", "-march=native", "-ffp-contract=off"]

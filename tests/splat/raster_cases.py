@@ -102,7 +102,8 @@ def weighted(out: RenderOutput, name: str, seed: int) -> Tensor:
     """A scalar loss: the output weighted by fixed random weights."""
     image = getattr(out, name)
     g = torch.Generator().manual_seed(seed)
-    return (torch.randn(image.shape, generator=g, dtype=torch.float64).to(image.dtype) * image).sum()
+    weights = torch.randn(image.shape, generator=g, dtype=torch.float64)
+    return (weights.to(image.device, image.dtype) * image).sum()
 
 
 def gradients(scene: TriangleScene, backend: str, name: str, global_sigma: bool = False) -> list[Tensor]:

@@ -12,35 +12,13 @@
 #include <cmath>
 #include <vector>
 
+#include "bins.h"
 #include "cpu_ops.h"
 #include "triangle_math.h"
 
 namespace {
 
 using namespace lts;
-
-// Tile lists built by splat/raster/binning.py.
-struct Bins {
-  const int64_t* tile_offsets;  // (n_tiles + 1,) start of each tile's entries
-  const int32_t* tile_slots;    // (n_slots,) slot of each entry, depth order inside a tile
-  const int32_t* slot_tri;      // (n_slots,) sorted triangle of each slot
-  const int64_t* tri_offsets;   // (n_triangles + 1,) slots of a triangle are contiguous
-  const int32_t* bounds;        // (n_triangles, 4) inclusive pixel box x0, y0, x1, y1
-  int width, height, tiles_x, n_tiles;
-};
-
-Bins make_bins(const torch::Tensor& bounds, const torch::Tensor& tile_offsets,
-               const torch::Tensor& tile_slots, const torch::Tensor& slot_tri,
-               const torch::Tensor& tri_offsets, int64_t width, int64_t height) {
-  const int tiles_x = static_cast<int>((width + kTile - 1) / kTile);
-  const int tiles_y = static_cast<int>((height + kTile - 1) / kTile);
-  TORCH_CHECK(tile_offsets.numel() == tiles_x * tiles_y + 1, "tile_offsets has the wrong size");
-  return {tile_offsets.data_ptr<int64_t>(), tile_slots.data_ptr<int32_t>(),
-          slot_tri.data_ptr<int32_t>(),     tri_offsets.data_ptr<int64_t>(),
-          bounds.data_ptr<int32_t>(),       static_cast<int>(width),
-          static_cast<int>(height),         tiles_x,
-          tiles_x * tiles_y};
-}
 
 // Runs fn(tile) for every tile; threads take tiles from a shared counter because tiles cost very
 // different amounts. Each tile's result does not depend on the thread that computes it.
@@ -220,26 +198,14 @@ void backward_tile(int tile, const Bins& b, const T* params, const T* alpha, con
   }
 }
 
-void check_bins(const torch::Tensor& params, const torch::Tensor& bounds,
-                const torch::Tensor& tile_offsets, const torch::Tensor& tile_slots,
-                const torch::Tensor& slot_tri, const torch::Tensor& tri_offsets) {
-  TORCH_CHECK(params.device().is_cpu() && params.is_contiguous() && params.dim() == 2 &&
-                  params.size(1) == kParams,
-              "params must be a contiguous CPU (K, ", kParams, ") tensor");
-  TORCH_CHECK(bounds.scalar_type() == torch::kInt32 && bounds.is_contiguous(), "bounds: int32");
-  TORCH_CHECK(tile_offsets.scalar_type() == torch::kInt64, "tile_offsets: int64");
-  TORCH_CHECK(tri_offsets.scalar_type() == torch::kInt64, "tri_offsets: int64");
-  TORCH_CHECK(tile_slots.scalar_type() == torch::kInt32 && slot_tri.scalar_type() == torch::kInt32,
-              "tile_slots, slot_tri: int32");
-}
-
 std::vector<torch::Tensor> forward(const torch::Tensor& params, const torch::Tensor& bounds,
                                    const torch::Tensor& tile_offsets,
                                    const torch::Tensor& tile_slots, const torch::Tensor& slot_tri,
                                    const torch::Tensor& tri_offsets, int64_t width,
                                    int64_t height) {
-  check_bins(params, bounds, tile_offsets, tile_slots, slot_tri, tri_offsets);
-  const Bins b = make_bins(bounds, tile_offsets, tile_slots, slot_tri, tri_offsets, width, height);
+  TORCH_CHECK(params.device().is_cpu(), "params must be on the CPU");
+  const Bins b =
+      make_bins(params, bounds, tile_offsets, tile_slots, slot_tri, tri_offsets, width, height);
   const auto f = params.options();
   const auto i32 = f.dtype(torch::kInt32);
   auto rgb = torch::empty({height, width, 3}, f), normal = torch::empty({height, width, 3}, f);
@@ -286,12 +252,13 @@ torch::Tensor backward(const torch::Tensor& params, const torch::Tensor& bounds,
                        const torch::Tensor& d_depth, const torch::Tensor& d_alpha,
                        const torch::Tensor& d_normal, const torch::Tensor& d_median,
                        const torch::Tensor& d_distortion) {
-  check_bins(params, bounds, tile_offsets, tile_slots, slot_tri, tri_offsets);
+  TORCH_CHECK(params.device().is_cpu(), "params must be on the CPU");
   for (const auto* t : {&d_rgb, &d_depth, &d_alpha, &d_normal, &d_median, &d_distortion}) {
     TORCH_CHECK(t->is_contiguous() && t->scalar_type() == params.scalar_type(),
                 "upstream gradients must be contiguous and of the parameters' dtype");
   }
-  const Bins b = make_bins(bounds, tile_offsets, tile_slots, slot_tri, tri_offsets, width, height);
+  const Bins b =
+      make_bins(params, bounds, tile_offsets, tile_slots, slot_tri, tri_offsets, width, height);
   const int64_t n_tri = params.size(0);
   auto slot_grads = torch::empty({tile_slots.numel(), kGrads}, params.options());
   auto d_params = torch::zeros({n_tri, kParams}, params.options());

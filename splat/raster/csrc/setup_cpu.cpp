@@ -7,29 +7,13 @@
 
 #include <vector>
 
+#include "bins.h"
 #include "cpu_ops.h"
 #include "triangle_setup.h"
 
 namespace {
 
 using namespace lts;
-
-template <typename T>
-View<T> make_view(const torch::Tensor& view, int64_t width, int64_t height) {
-  TORCH_CHECK(view.numel() == 17 && view.scalar_type() == torch::kFloat64, "view: 17 doubles");
-  const double* c = view.data_ptr<double>();
-  View<T> v;
-  for (int i = 0; i < 9; ++i) v.R[i] = T(c[i]);
-  for (int i = 0; i < 3; ++i) v.t[i] = T(c[9 + i]);
-  v.fx = T(c[12]);
-  v.fy = T(c[13]);
-  v.cx = T(c[14]);
-  v.cy = T(c[15]);
-  v.near = T(c[16]);
-  v.width = static_cast<int>(width);
-  v.height = static_cast<int>(height);
-  return v;
-}
 
 // Pointers to a face's three vertex rows of an (N, stride) array.
 template <typename T>
@@ -39,17 +23,6 @@ struct Corners {
     for (int i = 0; i < 3; ++i) row[i] = base + face[i] * stride;
   }
 };
-
-// Triangle opacity (min of the vertices, first on ties) and the vertex it comes from.
-template <typename T>
-int min_opacity(const T* opacities, const int64_t* face, T* value) {
-  int arg = 0;
-  for (int i = 1; i < 3; ++i) {
-    if (opacities[face[i]] < opacities[face[arg]]) arg = i;
-  }
-  *value = opacities[face[arg]];
-  return arg;
-}
 
 }  // namespace
 

@@ -17,6 +17,17 @@ struct View {
   int width, height;
 };
 
+// Triangle opacity (TS+: the min of its vertices, first on ties); returns which vertex.
+template <typename T>
+LTS_HD int min_opacity(const T* opacities, const int64_t* face, T* value) {
+  int arg = 0;
+  for (int i = 1; i < 3; ++i) {
+    if (opacities[face[i]] < opacities[face[arg]]) arg = i;
+  }
+  *value = opacities[face[arg]];
+  return arg;
+}
+
 // Camera-frame vertices and their projections.
 template <typename T>
 struct Projected {
