@@ -2,12 +2,15 @@
 
 The child replays the scene through the fake serial LiDAR (at once, as an LD06 streams from
 power-on) and, once told the ports to send to, the fake Livox; on stop it reports what it did.
+It also stops by itself when its parent dies (a recorder killed with SIGKILL).
 """
 
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import queue
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +21,15 @@ from rig.mock.serial_lidar import FakeSerialLidar
 LD06_RATE_HZ = 10.0
 
 
+def _watch_parent(parent_pid: int, stop: Any) -> None:
+    """Stop when the recorder that started us dies (SIGKILL leaves no chance to tell us)."""
+    while not stop.wait(0.2):
+        if os.getppid() != parent_pid:
+            stop.set()
+
+
 def _main(
+    parent_pid: int,
     scene_dir: str,
     link: str,
     serial_options: dict[str, Any],
@@ -27,6 +38,7 @@ def _main(
     stop: Any,
     result: Any,
 ) -> None:
+    threading.Thread(target=_watch_parent, args=(parent_pid, stop), daemon=True).start()
     scene = Scene(scene_dir)
     serial = FakeSerialLidar(
         link, latest_slice(scene.scans()), "ld06", LD06_RATE_HZ, **serial_options
@@ -69,7 +81,16 @@ class DeviceProcess:
         self._result: Any = ctx.Queue()
         self._process = ctx.Process(
             target=_main,
-            args=(str(scene_dir), str(link), serial_options, self._ready, self._go, self._stop, self._result),
+            args=(
+                os.getpid(),
+                str(scene_dir),
+                str(link),
+                serial_options,
+                self._ready,
+                self._go,
+                self._stop,
+                self._result,
+            ),
             name="rig-mock-devices",
             daemon=True,
         )

@@ -73,11 +73,29 @@ def _start(scene_dir: Path, out: Path) -> subprocess.Popen:
     return proc
 
 
+def _children(pid: int) -> list[int]:
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
 def test_sigkill_leaves_a_file_rig_info_reads_and_calls_truncated(scene_dir: Path, tmp_path: Path) -> None:
     out = tmp_path / "killed.mcap"
     proc = _start(scene_dir, out)
+    children = _children(proc.pid)  # the mock devices' process (and multiprocessing's tracker)
+    assert children
     proc.kill()
     proc.wait(10)
+    deadline = time.monotonic() + 5
+    while any(Path(f"/proc/{c}").exists() for c in children) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not any(Path(f"/proc/{c}").exists() for c in children), "mock devices outlived the recorder"
     report = info_here(out)
     assert report["truncated"] and not report["finished"]
     assert report["messages"] > 50
