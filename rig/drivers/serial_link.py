@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 from rig.drivers.base import DeviceError, Health, now_ns
@@ -25,7 +26,7 @@ class SerialLink:
         self._serial: Any = None
         self._lost_at: int | None = None
         self._last_try = 0.0
-        self.on_connect: Any = None
+        self.on_connect: Callable[[], None] | None = None
 
     @property
     def connected(self) -> bool:

@@ -73,7 +73,7 @@ class Scene:
         info = self.streams.get("camera_info")
         return None if info is None else self.reader.camera_model(info.topic)
 
-    def _loop(self, role: str) -> Iterator[tuple[int, object]]:
+    def _loop(self, role: str) -> Iterator[tuple[int, Any]]:
         info = self.streams[role]
         # Each stream repeats after count x period, so its rate holds across the seam. Streams
         # then shift against each other by under one period per lap (e.g. 91 frames at 30 Hz vs
@@ -93,13 +93,13 @@ class Scene:
             lap += 1
 
     def frames(self) -> Iterator[tuple[int, Frame]]:
-        return self._loop("image")  # type: ignore[return-value]
+        return self._loop("image")
 
     def scans(self) -> Iterator[tuple[int, Scan]]:
-        return self._loop("points")  # type: ignore[return-value]
+        return self._loop("points")
 
     def imu(self) -> Iterator[tuple[int, ImuSample]]:
-        return self._loop("imu")  # type: ignore[return-value]
+        return self._loop("imu")
 
 
 def slice_2d(scan: Scan, n_bins: int = 450, max_elevation_deg: float = 2.0) -> tuple[np.ndarray, np.ndarray]:

@@ -78,3 +78,18 @@ def test_fuzz_stream_never_raises_and_finds_embedded_packets(chunks: list[bytes]
     found += len(parser.feed(b"\x00" * 47 + hand_packet() * copies))
     assert found >= copies
     assert len(parser._buf) < 47 + 2 * 47  # bounded buffer
+
+
+def test_large_random_stream_is_consumed_quickly() -> None:
+    import time
+
+    rng = np.random.default_rng(0)
+    noise = rng.integers(0, 256, 300_000, dtype=np.uint8)
+    noise[::50] = 0x54  # many false headers
+    noise[1::50] = 0x2C
+    parser = LdStreamParser()
+    start = time.monotonic()
+    for i in range(0, noise.size, 4096):
+        parser.feed(noise[i : i + 4096].tobytes())
+    assert time.monotonic() - start < 5.0
+    assert parser.crc_errors >= 5000 and len(parser._buf) < 47

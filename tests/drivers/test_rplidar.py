@@ -82,3 +82,15 @@ def test_fuzz_node_stream(chunks: list[bytes]) -> None:
         nodes, ends = parser.feed(chunk)
         assert len(nodes.angle_deg) == len(ends)
     assert len(parser._buf) < rp.NODE_SIZE
+
+
+def test_large_random_node_stream_is_consumed_quickly() -> None:
+    import time
+
+    data = np.random.default_rng(1).integers(0, 256, 200_000, dtype=np.uint8).tobytes()
+    parser = rp.NodeStreamParser()
+    start = time.monotonic()
+    for i in range(0, len(data), 4096):
+        nodes, ends = parser.feed(data[i : i + 4096])
+        assert len(nodes.angle_deg) == len(ends)
+    assert time.monotonic() - start < 5.0 and len(parser._buf) < rp.NODE_SIZE
