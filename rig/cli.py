@@ -157,6 +157,8 @@ def record(
 
     if (config is None) == (sim is None):
         raise InputError("give exactly one of --config RIG.yaml or --sim SCENE_DIR", field="--config/--sim")
+    if not out.parent.is_dir():
+        raise InputError("the output folder does not exist", path=out.parent, field="--out")
     try:
         if sim is not None:
             from rig.mock.sim_rig import build_sim_rig
@@ -306,6 +308,8 @@ def recover(
     """Salvage every complete record of a truncated recording into a valid MCAP file."""
     from rig.session.recover import recover as run_recover
 
+    if not out.parent.is_dir():
+        raise InputError("the output folder does not exist", path=out.parent, field="--out")
     result = run_recover(session, out)
     if json_out:
         emit_json(result)

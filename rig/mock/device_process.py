@@ -63,6 +63,7 @@ def _main(
             {
                 "serial_corrupted_packets": serial.corrupted_packets,
                 "serial_packets": serial.packets_sent,
+                "serial_revolutions": serial.revolutions_sent,
                 "serial_unplugged": serial.unplugged,
                 "livox_packets": None if livox is None else livox.packets_sent,
                 "livox_scans": None if livox is None else livox.scans_sent,
@@ -75,7 +76,6 @@ class DeviceProcess:
 
     def __init__(self, scene_dir: str | Path, link: str | Path, **serial_options: Any) -> None:
         ctx = mp.get_context("spawn")  # the parent has threads: never fork it
-        self.link = Path(link)
         self._ready, self._stop = ctx.Event(), ctx.Event()
         self._go: Any = ctx.Queue()
         self._result: Any = ctx.Queue()
