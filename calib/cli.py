@@ -110,13 +110,23 @@ def extrinsic(
     overlay: Path | None = typer.Option(
         None, "--overlay", help="PNG: LiDAR points on the first image, initial guess beside the result."
     ),
+    board: str | None = typer.Option(
+        None, "--board", help="Target-based: chessboard COLSxROWS inner corners seen in every pair."
+    ),
+    square: float = typer.Option(0.1, "--square", help="Target-based: square side (m)."),
+    outline: str | None = typer.Option(
+        None, "--outline", help="Target-based: board size WxH in mm (default: one square beyond the corners)."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
-    """Targetless LiDAR-camera extrinsic refinement from image + point-cloud pairs and a rough guess."""
+    """LiDAR-camera extrinsic from image + point-cloud pairs and a rough guess: targetless
+    (edges + mutual information), or from a chessboard in several poses with --board."""
     import cv2
 
+    from calib.boards import ChessboardTarget, parse_grid
     from calib.overlay import write_comparison
     from calib.pointcloud_io import read_point_cloud
+    from calib.target_based import board_observations, calibrate_with_board
     from calib.targetless import ExtrinsicPair, refine_extrinsic
     from rig.calibration import load_calibration, save_calibration
     from rig.errors import InputError
@@ -132,7 +142,17 @@ def extrinsic(
         if picture is None:
             raise InputError("cannot read the image", path=image_path)
         pairs.append(ExtrinsicPair(picture, read_point_cloud(cloud_path)))
-    result = refine_extrinsic(pairs, start.camera, start.T_cam_lidar)
+    if board is None:
+        result = refine_extrinsic(pairs, start.camera, start.T_cam_lidar)
+    else:
+        target = ChessboardTarget(*parse_grid(board, "--board"), square)
+        if outline is None:
+            half = ((target.cols + 1) * square / 2, (target.rows + 1) * square / 2)
+        else:
+            width_mm, height_mm = parse_grid(outline, "--outline")
+            half = (width_mm / 2000, height_mm / 2000)
+        observations = board_observations(pairs, start.camera, target)
+        result = calibrate_with_board(observations, half, start.T_cam_lidar)
     calibration = _merge_into(
         out if out.exists() else init,
         camera=start.camera,

@@ -1,7 +1,7 @@
-"""Angular speed of the rig over time, seen by the camera and by the LiDAR.
+"""Angular velocity of the rig over time, seen by the camera and on the LiDAR's clock.
 
-The magnitude of the angular velocity does not depend on the sensor frame, so the two signals
-can be compared without knowing the extrinsic rotation.
+Each source gives body-frame angular velocity vectors (rad/s) in its own sensor frame; the time
+fit finds the rotation between the frames itself, so no extrinsic is needed.
 """
 
 from __future__ import annotations
@@ -54,11 +54,11 @@ def _relative_rotation(gray_a: np.ndarray, gray_b: np.ndarray, camera: CameraMod
     return R
 
 
-def camera_angular_speed(frames: Sequence[Frame], camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
-    """Angular speed (rad/s) of the camera from feature tracks and essential matrices.
+def camera_angular_velocity(frames: Sequence[Frame], camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+    """Angular velocity (rad/s, camera frame) from feature tracks and essential matrices.
 
-    Returns times ``(K,)`` (s, host clock, midpoints of frame pairs ``FRAME_GAP`` apart) and speeds
-    ``(K,)``; pairs without enough tracks are left out.
+    Returns times ``(K,)`` (s, host clock, midpoints of frame pairs ``FRAME_GAP`` apart) and
+    vectors ``(K, 3)``; pairs without enough tracks are left out.
     """
     grays = [to_gray(f.image) for f in frames]
     stamps = np.array([f.t_host for f in frames], dtype=np.int64)
@@ -69,14 +69,16 @@ def camera_angular_speed(frames: Sequence[Frame], camera: CameraModel) -> tuple[
         dt = (stamps[j] - stamps[i]) * 1e-9
         if R is None or dt <= 0:
             continue
-        angle = Rotation.from_matrix(R).magnitude()
-        if angle > MAX_PAIR_ROTATION:
+        # recoverPose gives R_b_a = exp(-w dt) for body angular velocity w.
+        rotvec = -Rotation.from_matrix(R).as_rotvec()
+        if np.linalg.norm(rotvec) > MAX_PAIR_ROTATION:
             continue
         times.append((stamps[i] + (stamps[j] - stamps[i]) / 2) * 1e-9)
-        speeds.append(angle / dt)
-    if len(speeds) >= MEDIAN_WINDOW:
-        speeds = median_filter(np.asarray(speeds), MEDIAN_WINDOW, mode="nearest")
-    return np.asarray(times), np.asarray(speeds)
+        speeds.append(rotvec / dt)
+    omega = np.asarray(speeds).reshape(-1, 3)
+    if len(omega) >= MEDIAN_WINDOW:
+        omega = median_filter(omega, size=(MEDIAN_WINDOW, 1), mode="nearest")
+    return np.asarray(times), omega
 
 
 def lidar_poses(scans: Sequence[Scan]) -> tuple[np.ndarray, np.ndarray]:
@@ -109,22 +111,23 @@ def lidar_poses(scans: Sequence[Scan]) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(times), np.asarray(poses).reshape(-1, 4, 4)
 
 
-def lidar_angular_speed(scans: Sequence[Scan]) -> tuple[np.ndarray, np.ndarray]:
-    """Angular speed (rad/s) from KISS-ICP odometry: midpoint times ``(J - 1,)`` and speeds."""
+def lidar_angular_velocity(scans: Sequence[Scan]) -> tuple[np.ndarray, np.ndarray]:
+    """Angular velocity (rad/s, LiDAR frame) from KISS-ICP odometry: midpoint times ``(J - 1,)``
+    and vectors ``(J - 1, 3)``."""
     times, poses = lidar_poses(scans)
     if len(times) < 2:
-        return np.zeros(0), np.zeros(0)
+        return np.zeros(0), np.zeros((0, 3))
     rel = np.einsum("nji,njk->nik", poses[:-1, :3, :3], poses[1:, :3, :3])
-    speeds = Rotation.from_matrix(rel).magnitude() / np.diff(times)
-    return (times[:-1] + times[1:]) / 2, speeds
+    omega = Rotation.from_matrix(rel).as_rotvec() / np.diff(times)[:, None]
+    return (times[:-1] + times[1:]) / 2, omega
 
 
-def imu_angular_speed(samples: Sequence[ImuSample]) -> tuple[np.ndarray, np.ndarray]:
-    """Angular speed (rad/s) from gyro samples: times ``(I,)`` (s, host clock) and speeds ``(I,)``.
+def imu_angular_velocity(samples: Sequence[ImuSample]) -> tuple[np.ndarray, np.ndarray]:
+    """Gyro angular velocity (rad/s, IMU frame): times ``(I,)`` (s, host clock), vectors ``(I, 3)``.
 
     For an IMU built into the LiDAR (Livox, Ouster, the virtual rig) this is the LiDAR clock's
     motion signal, and far less noisy than odometry differences.
     """
     times = np.array([s.t_host for s in samples], dtype=np.float64) * 1e-9
-    speeds = np.array([np.linalg.norm(s.angular_velocity) for s in samples], dtype=np.float64)
-    return times, speeds
+    omega = np.array([s.angular_velocity for s in samples], dtype=np.float64).reshape(-1, 3)
+    return times, omega

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from calib.motion import camera_angular_speed, imu_angular_speed, lidar_angular_speed
+from calib.motion import camera_angular_velocity, imu_angular_velocity, lidar_angular_velocity
 from calib.pointcloud_io import PointCloud
 from calib.targetless import ExtrinsicPair, refine_extrinsic
 from calib.time_offset import TimeOffsetResult, estimate_time_offset
@@ -67,11 +67,11 @@ def calibrate_time(
         raise InputError(f"no IMU samples on {data.topics['imu']}", path=data.path, field="topics")
     if not use_imu and not data.scans:
         raise InputError(f"no LiDAR scans on {data.topics['points']}", path=data.path, field="topics")
-    t_cam, w_cam = camera_angular_speed(data.frames, camera)
-    t_lid, w_lid = imu_angular_speed(data.imu) if use_imu else lidar_angular_speed(data.scans)
+    t_cam, w_cam = camera_angular_velocity(data.frames, camera)
+    t_lid, w_lid = imu_angular_velocity(data.imu) if use_imu else lidar_angular_velocity(data.scans)
     result = estimate_time_offset(t_cam, w_cam, t_lid, w_lid)
     result.extra["lidar_motion"] = "imu gyro" if use_imu else "KISS-ICP odometry"
-    return result, (t_cam, w_cam)
+    return result, (t_cam, np.linalg.norm(w_cam, axis=1))
 
 
 def extrinsic_pairs(

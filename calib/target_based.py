@@ -19,9 +19,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from calib.boards import BoardView
+from calib.boards import BoardView, ChessboardTarget, detect_chessboard, to_gray
 from calib.pointcloud_io import PointCloud
-from calib.targetless import ExtrinsicResult
+from calib.targetless import ExtrinsicPair, ExtrinsicResult
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.transforms import invert, make_transform, transform_points
@@ -113,6 +113,7 @@ def board_points(
     if len(points) < MIN_PLANE_POINTS:
         return np.zeros((0, 3))
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    o3d.utility.random.seed(0)  # reproducible RANSAC
     _, inliers = pcd.segment_plane(PLANE_THRESHOLD_M, 3, 500)
     if len(inliers) < MIN_PLANE_POINTS:
         return np.zeros((0, 3))
@@ -229,3 +230,16 @@ def calibrate_with_board(
         method="target-based (board planes)",
         extra={"poses_used": used, "plane_rms_m": rms, "normal_spread": spread},
     )
+
+
+def board_observations(
+    pairs: Sequence[ExtrinsicPair], camera: CameraModel, target: ChessboardTarget
+) -> list[BoardObservation]:
+    """Board observations from image + cloud pairs; images where the board is not found are skipped."""
+    observations = []
+    for i, pair in enumerate(pairs):
+        corners = detect_chessboard(to_gray(pair.image), target.cols, target.rows)
+        if corners is not None:
+            view = BoardView(f"pair {i}", corners, target.object_points())
+            observations.append(BoardObservation(board_pose(view, camera), pair.cloud, view.name))
+    return observations

@@ -1,10 +1,12 @@
-"""Camera–LiDAR time offset from motion: align the two angular-speed signals in time.
+"""Camera–LiDAR time offset from motion: align the two angular-velocity signals in time.
 
 ``time_offset_s`` is what to add to LiDAR stamps to put them on the camera clock, so the camera
-sees at ``t`` what the LiDAR stamped at ``t - offset``: ``w_cam(t) ≈ a · w_lidar(t - offset) + b``.
-Coarse: normalised cross-correlation on a uniform grid. Fine: a continuous-time fit (cubic spline
-of the LiDAR signal, the gain ``a`` and bias ``b`` solved in closed form for each offset).
-Uncertainty: block jackknife over ``JACKKNIFE_BLOCKS`` time blocks (robust to correlated residuals).
+sees at ``t`` what the LiDAR stamped at ``t - offset``: ``w_cam(t) ≈ R · w_lidar(t - offset)``
+with ``R`` the rotation between the sensor frames (solved here, no extrinsic needed).
+Coarse: normalised cross-correlation of the angular speeds (frame-independent) on a uniform grid.
+Fine: a continuous-time fit of the vectors (cubic spline of the smoothed LiDAR-clock signal, ``R``
+by Kabsch for each trial offset). Uncertainty: block jackknife over ``JACKKNIFE_BLOCKS`` time
+blocks (robust to correlated residuals).
 """
 
 from __future__ import annotations
@@ -24,9 +26,8 @@ MAX_OFFSET_S = 0.5
 #: The camera's angular speed must vary by at least this (rad/s, standard deviation).
 MIN_SPEED_STD = 0.05
 MIN_CORRELATION = 0.5
-#: Block-jackknife spread above which the offset is not trusted (the jackknife is conservative:
-#: on the virtual rig it reads ~6 ms for a 0.4 ms error).
-MAX_STD_S = 0.010
+#: Block-jackknife spread above which the offset is not trusted.
+MAX_STD_S = 0.005
 MIN_SAMPLES = 20
 JACKKNIFE_BLOCKS = 5
 
@@ -57,12 +58,17 @@ class TimeOffsetResult:
         }
 
 
+def kabsch(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation ``(3, 3)`` minimising ``sum |a_i - R b_i|^2`` for vectors ``a``, ``b`` ``(N, 3)``."""
+    u, _, vt = np.linalg.svd(a.T @ b)
+    return u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+
+
 def _fit_cost(offset: float, t_cam: np.ndarray, w_cam: np.ndarray, spline: CubicSpline) -> float:
-    """Mean squared residual of ``w_cam ≈ a · spline(t_cam - offset) + b`` (a, b least squares)."""
-    x = spline(t_cam - offset)
-    A = np.column_stack([x, np.ones_like(x)])
-    coef, *_ = np.linalg.lstsq(A, w_cam, rcond=None)
-    return float(np.mean((A @ coef - w_cam) ** 2))
+    """Mean squared residual (rad²/s²) of ``w_cam ≈ R · spline(t_cam - offset)``, best ``R``."""
+    w_lidar = spline(t_cam - offset)
+    R = kabsch(w_cam, w_lidar)
+    return float(np.mean(np.sum((w_cam - w_lidar @ R.T) ** 2, axis=1)))
 
 
 def _refine(
@@ -88,15 +94,18 @@ def estimate_time_offset(
     w_lidar: np.ndarray,
     max_offset_s: float = MAX_OFFSET_S,
 ) -> TimeOffsetResult:
-    """Offset (s) between camera angular speed ``w_cam`` ``(K,)`` at times ``t_cam`` ``(K,)`` and
-    LiDAR angular speed ``w_lidar`` ``(J,)`` at ``t_lidar`` ``(J,)`` (seconds, any common origin).
+    """Offset (s) between camera angular velocity ``w_cam`` ``(K, 3)`` at times ``t_cam`` ``(K,)``
+    and LiDAR-clock angular velocity ``w_lidar`` ``(J, 3)`` at ``t_lidar`` ``(J,)`` (seconds, any
+    common origin; each signal in its own sensor frame).
 
     Weak or uniform motion gives ``poorly constrained`` with the reason (the offset is then NaN
     when not even a coarse estimate exists).
     """
     t_cam, w_cam = np.asarray(t_cam, float), np.asarray(w_cam, float)
     t_lidar, w_lidar = np.asarray(t_lidar, float), np.asarray(w_lidar, float)
-    speed_std = float(np.std(w_cam)) if len(w_cam) else 0.0
+    w_cam, w_lidar = w_cam.reshape(-1, 3), w_lidar.reshape(-1, 3)
+    speed_cam, speed_lidar = np.linalg.norm(w_cam, axis=1), np.linalg.norm(w_lidar, axis=1)
+    speed_std = float(np.std(speed_cam)) if len(w_cam) else 0.0
     reasons = []
     if len(w_cam) < MIN_SAMPLES or len(w_lidar) < MIN_SAMPLES // 4:
         reasons.append(f"too few motion samples ({len(w_cam)} camera, {len(w_lidar)} LiDAR)")
@@ -109,25 +118,27 @@ def estimate_time_offset(
         return TimeOffsetResult(np.nan, np.inf, "poorly constrained", reasons, np.nan, speed_std, len(w_cam))
 
     order = np.argsort(t_lidar)
-    t_lidar, w_lidar = t_lidar[order], w_lidar[order]
-    span = (t_lidar[0], t_lidar[-1])
+    t_lidar, w_lidar, speed_lidar = t_lidar[order], w_lidar[order], speed_lidar[order]
     # An interpolating spline through noisy samples makes the fit cost rough in the offset; a
     # symmetric (zero-lag) Gaussian smoothing on a uniform grid first keeps it smooth.
-    uniform_t = np.arange(span[0], span[1], GRID_STEP_S)
-    uniform_w = gaussian_filter1d(
-        np.interp(uniform_t, t_lidar, w_lidar), LIDAR_SMOOTHING_S / GRID_STEP_S, mode="nearest"
-    )
-    spline = CubicSpline(uniform_t, uniform_w)
+    uniform_t = np.arange(t_lidar[0], t_lidar[-1], GRID_STEP_S)
+    sigma = LIDAR_SMOOTHING_S / GRID_STEP_S
+
+    def smoothed(values: np.ndarray) -> np.ndarray:
+        return gaussian_filter1d(np.interp(uniform_t, t_lidar, values), sigma, mode="nearest")
+
+    spline = CubicSpline(uniform_t, np.column_stack([smoothed(w_lidar[:, k]) for k in range(3)]))
+    speed_spline = CubicSpline(uniform_t, smoothed(speed_lidar))
     span = (uniform_t[0], uniform_t[-1])
     # Coarse: normalised cross-correlation of both signals on a common uniform grid.
     grid = np.arange(max(t_cam[0], span[0]), min(t_cam[-1], span[1]), GRID_STEP_S)
-    cam_grid = np.interp(grid, t_cam, w_cam)
+    cam_grid = np.interp(grid, t_cam, speed_cam)
     lags = np.arange(-max_offset_s, max_offset_s + 1e-12, GRID_STEP_S)
     scores = np.full(len(lags), -np.inf)
     for i, lag in enumerate(lags):
         inside = (grid - lag >= span[0]) & (grid - lag <= span[1])
         if inside.sum() > len(grid) // 2:
-            a, b = cam_grid[inside], spline(grid[inside] - lag)
+            a, b = cam_grid[inside], speed_spline(grid[inside] - lag)
             if a.std() > 0 and b.std() > 0:
                 scores[i] = float(np.corrcoef(a, b)[0, 1])
     best = int(np.argmax(scores))
@@ -136,7 +147,7 @@ def estimate_time_offset(
 
     blocks = np.array_split(np.arange(len(t_cam)), JACKKNIFE_BLOCKS)
     leave_one_out = np.array(
-        [_refine(offset, np.delete(t_cam, b), np.delete(w_cam, b), spline, span) for b in blocks]
+        [_refine(offset, np.delete(t_cam, b), np.delete(w_cam, b, axis=0), spline, span) for b in blocks]
     )
     n = len(blocks)
     std = float(np.sqrt((n - 1) / n * np.sum((leave_one_out - leave_one_out.mean()) ** 2)))
@@ -152,6 +163,15 @@ def estimate_time_offset(
         )
     if abs(offset) >= max_offset_s - 2 * GRID_STEP_S:
         reasons.append(f"offset at the search limit ±{max_offset_s} s")
+    keep = (t_cam - offset >= span[0]) & (t_cam - offset <= span[1])
+    R = kabsch(w_cam[keep], spline(t_cam[keep] - offset))
     return TimeOffsetResult(
-        offset, std, "poorly constrained" if reasons else "ok", reasons, correlation, speed_std, len(w_cam)
+        offset,
+        std,
+        "poorly constrained" if reasons else "ok",
+        reasons,
+        correlation,
+        speed_std,
+        len(w_cam),
+        extra={"R_cam_lidar_from_motion": R.tolist()},
     )

@@ -76,3 +76,53 @@ def test_parallel_boards_are_poorly_constrained() -> None:
     result = calibrate_with_board(same_tilt, HALF, _guess())
     assert result.verdict == "poorly constrained"
     assert "normals hardly differ" in result.reasons[0]
+
+
+def test_cli_board_mode(tmp_path) -> None:
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import cv2
+
+    from rig.calibration import Calibration, load_calibration, save_calibration
+
+    camera = sim_camera("pinhole")
+    rng = np.random.default_rng(4)
+    corners_centre = ((COLS - 1) * SQUARE / 2, (ROWS - 1) * SQUARE / 2)
+    outline = (-SQUARE, COLS * SQUARE, -SQUARE, ROWS * SQUARE)
+    args = []
+    for i, T_cam_board in enumerate(board_poses(8, 2.0, rng, corners_centre, max_tilt_deg=50)):
+        cv2.imwrite(str(tmp_path / f"{i}.png"), render_chessboard(camera, T_cam_board, COLS, ROWS, SQUARE))
+        points = board_scan(invert(T_CAM_LIDAR) @ T_cam_board, outline, rng, n_board=2000)
+        np.column_stack([points, np.zeros(len(points))]).astype("<f4").tofile(tmp_path / f"{i}.bin")
+        args += ["--image", tmp_path / f"{i}.png", "--points", tmp_path / f"{i}.bin"]
+    init, out = tmp_path / "init.yaml", tmp_path / "calib.yaml"
+    save_calibration(Calibration(camera, _guess()), init)
+    lts = Path(sys.executable).parent / "lts"
+    result = subprocess.run(
+        [
+            str(lts),
+            "calibrate",
+            "extrinsic",
+            *map(str, args),
+            "--init",
+            str(init),
+            "--out",
+            str(out),
+            "--board",
+            f"{COLS}x{ROWS}",
+            "--square",
+            str(SQUARE),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["method"] == "target-based (board planes)"
+    rot, trans = pose_difference(load_calibration(out).T_cam_lidar, T_CAM_LIDAR)
+    assert rot < 0.15 and trans < 0.01, (rot, trans)
