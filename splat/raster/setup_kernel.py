@@ -13,21 +13,21 @@ from splat.raster.project import Intrinsics, ProjectedTriangles
 
 class _Setup(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, vertices, colors, opacities, sigma, faces, index, view, size, ext):
+    def forward(ctx, vertices, colors, opacities, sigma, faces, kept, rank, view, size, ext):
         inputs = [t.contiguous() for t in (vertices, faces, colors, opacities)]
-        params, bounds = ext.setup_forward(*inputs, sigma.contiguous(), index, view, *size)
-        ctx.save_for_backward(*inputs, index, view)
+        params, bounds = ext.setup_forward(*inputs, sigma.contiguous(), kept, rank, view, *size)
+        ctx.save_for_backward(*inputs, kept, rank, view)
         ctx.size, ctx.ext, ctx.n_faces = size, ext, len(faces)
         ctx.mark_non_differentiable(bounds)
         return params, bounds
 
     @staticmethod
     def backward(ctx, d_params, _d_bounds):
-        *inputs, index, view = ctx.saved_tensors
+        *inputs, kept, rank, view = ctx.saved_tensors
         d_vertices, d_colors, d_opacities, d_sigma = ctx.ext.setup_backward(
-            *inputs, index, view, *ctx.size, d_params.contiguous(), ctx.n_faces
+            *inputs, kept, rank, view, *ctx.size, d_params.contiguous(), ctx.n_faces
         )
-        return d_vertices, d_colors, d_opacities, d_sigma, None, None, None, None, None
+        return d_vertices, d_colors, d_opacities, d_sigma, None, None, None, None, None, None
 
 
 def project_triangles_kernel(
@@ -59,7 +59,12 @@ def project_triangles_kernel(
             vertices.detach().contiguous(), faces.contiguous(), opacities.detach().contiguous(),
             sigma.detach().contiguous(), view, *size,
         )  # fmt: skip
-        index = keep.nonzero().squeeze(1)
-        index = index[torch.sort(key[index], stable=True).indices]
-    params, bounds = _Setup.apply(vertices, colors, opacities, sigma, faces, index, view, size, ext)
-    return ProjectedTriangles(params=params, bounds=bounds, index=index)
+        kept = keep.nonzero().squeeze(1)
+        # Kept keys are depths > near > 0, whose IEEE bit patterns sort like the values: sorting
+        # them as integers takes PyTorch's radix sort (~10x faster than a float sort).
+        bits = torch.int32 if key.dtype == torch.float32 else torch.int64
+        order = torch.sort(key[kept].view(bits), stable=True).indices
+        rank = torch.empty_like(order)
+        rank[order] = torch.arange(len(order), device=order.device)
+    params, bounds = _Setup.apply(vertices, colors, opacities, sigma, faces, kept, rank, view, size, ext)
+    return ProjectedTriangles(params=params, bounds=bounds, index=kept[order])

@@ -32,7 +32,8 @@ def test_cuda_source_compiles_with_nvcc(tmp_path: Path) -> None:
         includes.insert(0, str(tmp_path))
     cmd = ["nvcc", "-c", str(CSRC / "raster_cuda.cu"), "-o", str(tmp_path / "raster_cuda.o")]
     cmd += ["-std=c++20", "-O3", "--fmad=false", "-arch=sm_80", "-Xcompiler", "-fPIC", f"-I{CSRC}"]
-    cmd += [f"-isystem{p}" for p in includes]
+    for path in includes:
+        cmd += ["-isystem", str(path)]
     cmd += ["-DTORCH_EXTENSION_NAME=lts_raster_cuda_check", "-DTORCH_API_INCLUDE_EXTENSION_H"]
     cmd += ["-D__CUDA_NO_HALF_OPERATORS__", "-D__CUDA_NO_HALF_CONVERSIONS__", "--expt-relaxed-constexpr"]
     result = subprocess.run(cmd, capture_output=True, text=True, timeout=900)

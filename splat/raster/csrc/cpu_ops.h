@@ -12,21 +12,23 @@ std::vector<torch::Tensor> setup_cull(const torch::Tensor& vertices, const torch
                                       const torch::Tensor& opacities, const torch::Tensor& sigma,
                                       const torch::Tensor& view, int64_t width, int64_t height);
 
-// Kernel parameters (K, 27) and pixel boxes (K, 4) of the faces in `index` (K,).
+// Kernel parameters (K, 27) and pixel boxes (K, 4) of the faces `kept` (K,), ascending, each
+// written to row `rank` (K,) (its place in depth order): reading faces in order is cache-friendly.
 std::vector<torch::Tensor> setup_forward(const torch::Tensor& vertices, const torch::Tensor& faces,
                                          const torch::Tensor& colors,
                                          const torch::Tensor& opacities,
-                                         const torch::Tensor& sigma, const torch::Tensor& index,
-                                         const torch::Tensor& view, int64_t width,
-                                         int64_t height);
+                                         const torch::Tensor& sigma, const torch::Tensor& kept,
+                                         const torch::Tensor& rank, const torch::Tensor& view,
+                                         int64_t width, int64_t height);
 
 // Gradients for vertices, colours, opacities and sigma (n_faces,) from d(params).
 std::vector<torch::Tensor> setup_backward(const torch::Tensor& vertices,
                                           const torch::Tensor& faces,
                                           const torch::Tensor& colors,
                                           const torch::Tensor& opacities,
-                                          const torch::Tensor& index, const torch::Tensor& view,
-                                          int64_t width, int64_t height,
-                                          const torch::Tensor& d_params, int64_t n_faces);
+                                          const torch::Tensor& kept, const torch::Tensor& rank,
+                                          const torch::Tensor& view, int64_t width,
+                                          int64_t height, const torch::Tensor& d_params,
+                                          int64_t n_faces);
 
 }  // namespace lts_cpu

@@ -48,15 +48,15 @@ inline bool pair_box(const Bins& b, int k, int tx0, int ty0, Box& box) {
 // Narrows [x0, x1] to the pixels of row y where every edge function can reach the support
 // threshold (padded by a pixel: the exact test is per pixel). False if the row is empty.
 template <typename T>
-bool row_span(const T* p, T y, int& x0, int& x1) {
+bool row_span(const T* p, const T inv_a[3], T y, int& x0, int& x1) {
   T lo = T(x0), hi = T(x1);
   for (int j = 0; j < 3; ++j) {
     const T a = p[kLine + 3 * j];
-    const T rest = p[kParams - 1] - (p[kLine + 3 * j + 1] * y + p[kLine + 3 * j + 2]);
+    const T bound = (p[kParams - 1] - (p[kLine + 3 * j + 1] * y + p[kLine + 3 * j + 2])) * inv_a[j];
     if (a > T(0)) {
-      lo = std::max(lo, rest / a - T(1));
+      lo = std::max(lo, bound - T(1));
     } else if (a < T(0)) {
-      hi = std::min(hi, rest / a + T(1));
+      hi = std::min(hi, bound + T(1));
     }
   }
   if (!(lo <= hi)) return false;
@@ -70,11 +70,13 @@ bool row_span(const T* p, T y, int& x0, int& x1) {
 template <typename T, typename F>
 void for_each_pixel(const T* p, const Box& box, int tx0, int ty0, const uint32_t* live,
                     const F& fn) {
+  T inv_a[3];
+  for (int j = 0; j < 3; ++j) inv_a[j] = T(1) / p[kLine + 3 * j];  // inf for 0: unused then
   for (int y = box.y0; y <= box.y1; ++y) {
     uint32_t bits = live[y - ty0];
     if (bits == 0) continue;
     int x0 = box.x0, x1 = box.x1;
-    if (!row_span(p, T(y), x0, x1)) continue;
+    if (!row_span(p, inv_a, T(y), x0, x1)) continue;
     bits &= (2u << (x1 - tx0)) - (1u << (x0 - tx0));
     while (bits != 0) {
       const int lx = __builtin_ctz(bits);
@@ -128,7 +130,7 @@ void forward_tile(int tile, const Bins& b, const T* params, T* rgb, T* depth, T*
       depth[o] = s.depth_sum;
       alpha[o] = s.weight_sum;
       median[o] = s.median;
-      distortion[o] = s.weight_sum * s.depth_m2;
+      distortion[o] = s.distortion();
       dominant[o] = s.best;
       transmittance[o] = s.transmittance;
       last_entry[o] = s.last_entry;

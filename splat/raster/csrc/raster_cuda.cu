@@ -54,38 +54,39 @@ __global__ void cull_kernel(int64_t n, View<T> v, const T* vert, const int64_t* 
 template <typename T>
 __global__ void setup_kernel(int64_t n, View<T> v, const T* vert, const T* colors,
                              const int64_t* faces, const T* opacities, const T* sigma,
-                             const int64_t* index, T* params, int32_t* bounds) {
-  const int64_t k = blockIdx.x * static_cast<int64_t>(blockDim.x) + threadIdx.x;
-  if (k >= n) return;
-  const int64_t* face = faces + 3 * index[k];
+                             const int64_t* kept, const int64_t* rank, T* params,
+                             int32_t* bounds) {
+  const int64_t j = blockIdx.x * static_cast<int64_t>(blockDim.x) + threadIdx.x;
+  if (j >= n) return;
+  const int64_t* face = faces + 3 * kept[j];
   T o;
   min_opacity(opacities, face, &o);
   int box[4];
-  setup(v, Corners<T>(vert, face).row, Corners<T>(colors, face).row, o, sigma[index[k]],
-        params + k * kParams, box);
-  for (int i = 0; i < 4; ++i) bounds[4 * k + i] = box[i];
+  setup(v, Corners<T>(vert, face).row, Corners<T>(colors, face).row, o, sigma[kept[j]],
+        params + rank[j] * kParams, box);
+  for (int i = 0; i < 4; ++i) bounds[4 * rank[j] + i] = box[i];
 }
 
 // Per-face gradients: world vertices (9), colours (9), and the vertex that gives the opacity.
 template <typename T>
 __global__ void setup_backward_kernel(int64_t n, View<T> v, const T* vert, const T* colors,
                                       const int64_t* faces, const T* opacities,
-                                      const int64_t* index, const T* d_params, T* per_face,
-                                      int64_t* opacity_vertex) {
-  const int64_t k = blockIdx.x * static_cast<int64_t>(blockDim.x) + threadIdx.x;
-  if (k >= n) return;
-  const int64_t* face = faces + 3 * index[k];
+                                      const int64_t* kept, const int64_t* rank,
+                                      const T* d_params, T* per_face, int64_t* opacity_vertex) {
+  const int64_t j = blockIdx.x * static_cast<int64_t>(blockDim.x) + threadIdx.x;
+  if (j >= n) return;
+  const int64_t* face = faces + 3 * kept[j];
   T gP[3][3], gcol[3][3], o;
   setup_backward(v, Corners<T>(vert, face).row, Corners<T>(colors, face).row,
-                 d_params + k * kParams, gP, gcol);
-  T* out = per_face + 18 * k;
+                 d_params + rank[j] * kParams, gP, gcol);
+  T* out = per_face + 18 * j;
   for (int i = 0; i < 3; ++i) {
     for (int c = 0; c < 3; ++c) {
       out[3 * i + c] = v.R[c] * gP[i][0] + v.R[3 + c] * gP[i][1] + v.R[6 + c] * gP[i][2];
       out[9 + 3 * i + c] = gcol[i][c];
     }
   }
-  opacity_vertex[k] = face[min_opacity(opacities, face, &o)];
+  opacity_vertex[j] = face[min_opacity(opacities, face, &o)];
 }
 
 // Loads entries [first, first + n) of a tile into shared memory.
@@ -145,7 +146,7 @@ __global__ void __launch_bounds__(kTilePixels)
   depth[o] = s.depth_sum;
   alpha[o] = s.weight_sum;
   median[o] = s.median;
-  distortion[o] = s.weight_sum * s.depth_m2;
+  distortion[o] = s.distortion();
   dominant[o] = s.best;
   transmittance[o] = s.transmittance;
   last_entry[o] = s.last_entry;
@@ -345,11 +346,11 @@ std::vector<torch::Tensor> setup_cull_cuda(const torch::Tensor& vertices, const 
 std::vector<torch::Tensor> setup_forward_cuda(const torch::Tensor& vertices, const torch::Tensor& faces,
                                          const torch::Tensor& colors,
                                          const torch::Tensor& opacities,
-                                         const torch::Tensor& sigma, const torch::Tensor& index,
-                                         const torch::Tensor& view, int64_t width,
-                                         int64_t height) {
+                                         const torch::Tensor& sigma, const torch::Tensor& kept,
+                                         const torch::Tensor& rank, const torch::Tensor& view,
+                                         int64_t width, int64_t height) {
   const c10::cuda::OptionalCUDAGuard guard(vertices.device());
-  const int64_t n = index.size(0);
+  const int64_t n = kept.size(0);
   auto params = torch::empty({n, kParams}, vertices.options());
   auto bounds = torch::empty({n, 4}, faces.options().dtype(torch::kInt32));
   if (n == 0) return {params, bounds};
@@ -357,8 +358,8 @@ std::vector<torch::Tensor> setup_forward_cuda(const torch::Tensor& vertices, con
     setup_kernel<scalar_t><<<blocks_for(n, 256), 256, 0, c10::cuda::getCurrentCUDAStream()>>>(
         n, make_view<scalar_t>(view, width, height), vertices.data_ptr<scalar_t>(),
         colors.data_ptr<scalar_t>(), faces.data_ptr<int64_t>(), opacities.data_ptr<scalar_t>(),
-        sigma.data_ptr<scalar_t>(), index.data_ptr<int64_t>(), params.data_ptr<scalar_t>(),
-        bounds.data_ptr<int32_t>());
+        sigma.data_ptr<scalar_t>(), kept.data_ptr<int64_t>(), rank.data_ptr<int64_t>(),
+        params.data_ptr<scalar_t>(), bounds.data_ptr<int32_t>());
   });
   C10_CUDA_KERNEL_LAUNCH_CHECK();
   return {params, bounds};
@@ -368,11 +369,12 @@ std::vector<torch::Tensor> setup_backward_cuda(const torch::Tensor& vertices,
                                           const torch::Tensor& faces,
                                           const torch::Tensor& colors,
                                           const torch::Tensor& opacities,
-                                          const torch::Tensor& index, const torch::Tensor& view,
-                                          int64_t width, int64_t height,
-                                          const torch::Tensor& d_params, int64_t n_faces) {
+                                          const torch::Tensor& kept, const torch::Tensor& rank,
+                                          const torch::Tensor& view, int64_t width,
+                                          int64_t height, const torch::Tensor& d_params,
+                                          int64_t n_faces) {
   const c10::cuda::OptionalCUDAGuard guard(vertices.device());
-  const int64_t n = index.size(0);
+  const int64_t n = kept.size(0);
   auto per_face = torch::empty({n, 18}, vertices.options());
   auto opacity_vertex = torch::empty({n}, faces.options());
   if (n > 0) {
@@ -381,18 +383,19 @@ std::vector<torch::Tensor> setup_backward_cuda(const torch::Tensor& vertices,
           <<<blocks_for(n, 256), 256, 0, c10::cuda::getCurrentCUDAStream()>>>(
               n, make_view<scalar_t>(view, width, height), vertices.data_ptr<scalar_t>(),
               colors.data_ptr<scalar_t>(), faces.data_ptr<int64_t>(),
-              opacities.data_ptr<scalar_t>(), index.data_ptr<int64_t>(),
+              opacities.data_ptr<scalar_t>(), kept.data_ptr<int64_t>(), rank.data_ptr<int64_t>(),
               d_params.data_ptr<scalar_t>(), per_face.data_ptr<scalar_t>(),
               opacity_vertex.data_ptr<int64_t>());
     });
     C10_CUDA_KERNEL_LAUNCH_CHECK();
   }
   // Shared vertices: scatter with index_add_ (atomic on the GPU, so not bit-reproducible there).
-  const auto vertex_ids = faces.index_select(0, index).reshape({-1});
+  const auto vertex_ids = faces.index_select(0, kept).reshape({-1});
+  const auto g = d_params.index_select(0, rank);  // rows in face order
   auto d_vertices = torch::zeros_like(vertices).index_add_(0, vertex_ids, per_face.slice(1, 0, 9).reshape({-1, 3}));
   auto d_colors = torch::zeros_like(colors).index_add_(0, vertex_ids, per_face.slice(1, 9, 18).reshape({-1, 3}));
-  auto d_opacities = torch::zeros_like(opacities).index_add_(0, opacity_vertex, d_params.select(1, kOpacity));
-  auto d_sigma = torch::zeros({n_faces}, vertices.options()).index_add_(0, index, d_params.select(1, kSigma));
+  auto d_opacities = torch::zeros_like(opacities).index_add_(0, opacity_vertex, g.select(1, kOpacity));
+  auto d_sigma = torch::zeros({n_faces}, vertices.options()).index_add_(0, kept, g.select(1, kSigma));
   return {d_vertices, d_colors, d_opacities, d_sigma};
 }
 

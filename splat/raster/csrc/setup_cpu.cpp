@@ -56,10 +56,10 @@ std::vector<torch::Tensor> setup_cull(const torch::Tensor& vertices, const torch
 std::vector<torch::Tensor> setup_forward(const torch::Tensor& vertices, const torch::Tensor& faces,
                                          const torch::Tensor& colors,
                                          const torch::Tensor& opacities,
-                                         const torch::Tensor& sigma, const torch::Tensor& index,
-                                         const torch::Tensor& view, int64_t width,
-                                         int64_t height) {
-  const int64_t n = index.size(0);
+                                         const torch::Tensor& sigma, const torch::Tensor& kept,
+                                         const torch::Tensor& rank, const torch::Tensor& view,
+                                         int64_t width, int64_t height) {
+  const int64_t n = kept.size(0);
   auto params = torch::empty({n, kParams}, vertices.options());
   auto bounds = torch::empty({n, 4}, faces.options().dtype(torch::kInt32));
   AT_DISPATCH_FLOATING_TYPES(vertices.scalar_type(), "lts_setup_forward", [&] {
@@ -69,18 +69,19 @@ std::vector<torch::Tensor> setup_forward(const torch::Tensor& vertices, const to
     const scalar_t* op = opacities.data_ptr<scalar_t>();
     const scalar_t* sg = sigma.data_ptr<scalar_t>();
     const int64_t* f = faces.data_ptr<int64_t>();
-    const int64_t* idx = index.data_ptr<int64_t>();
+    const int64_t* kp = kept.data_ptr<int64_t>();
+    const int64_t* rk = rank.data_ptr<int64_t>();
     scalar_t* p = params.data_ptr<scalar_t>();
     int32_t* bd = bounds.data_ptr<int32_t>();
     at::parallel_for(0, n, 2048, [&](int64_t a, int64_t b) {
-      for (int64_t k = a; k < b; ++k) {
-        const int64_t* face = f + 3 * idx[k];
+      for (int64_t j = a; j < b; ++j) {
+        const int64_t* face = f + 3 * kp[j];
         scalar_t o;
         min_opacity(op, face, &o);
         int box[4];
         setup(v, Corners<scalar_t>(vert, face, 3).row, Corners<scalar_t>(col, face, 3).row, o,
-              sg[idx[k]], p + k * kParams, box);
-        for (int i = 0; i < 4; ++i) bd[4 * k + i] = box[i];
+              sg[kp[j]], p + rk[j] * kParams, box);
+        for (int i = 0; i < 4; ++i) bd[4 * rk[j] + i] = box[i];
       }
     });
   });
@@ -91,10 +92,11 @@ std::vector<torch::Tensor> setup_backward(const torch::Tensor& vertices,
                                           const torch::Tensor& faces,
                                           const torch::Tensor& colors,
                                           const torch::Tensor& opacities,
-                                          const torch::Tensor& index, const torch::Tensor& view,
-                                          int64_t width, int64_t height,
-                                          const torch::Tensor& d_params, int64_t n_faces) {
-  const int64_t n = index.size(0);
+                                          const torch::Tensor& kept, const torch::Tensor& rank,
+                                          const torch::Tensor& view, int64_t width,
+                                          int64_t height, const torch::Tensor& d_params,
+                                          int64_t n_faces) {
+  const int64_t n = kept.size(0);
   constexpr int kPer = 3 * 3 + 3 * 3;  // world-vertex and colour gradients of one face
   auto per_face = torch::empty({n, kPer}, vertices.options());
   auto d_vertices = torch::zeros_like(vertices);
@@ -107,16 +109,17 @@ std::vector<torch::Tensor> setup_backward(const torch::Tensor& vertices,
     const scalar_t* col = colors.data_ptr<scalar_t>();
     const scalar_t* op = opacities.data_ptr<scalar_t>();
     const int64_t* f = faces.data_ptr<int64_t>();
-    const int64_t* idx = index.data_ptr<int64_t>();
+    const int64_t* kp = kept.data_ptr<int64_t>();
+    const int64_t* rk = rank.data_ptr<int64_t>();
     const scalar_t* g = d_params.data_ptr<scalar_t>();
     scalar_t* pf = per_face.data_ptr<scalar_t>();
     at::parallel_for(0, n, 2048, [&](int64_t a, int64_t b) {
-      for (int64_t k = a; k < b; ++k) {
-        const int64_t* face = f + 3 * idx[k];
+      for (int64_t j = a; j < b; ++j) {
+        const int64_t* face = f + 3 * kp[j];
         scalar_t gP[3][3], gcol[3][3];
         setup_backward(v, Corners<scalar_t>(vert, face, 3).row, Corners<scalar_t>(col, face, 3).row,
-                       g + k * kParams, gP, gcol);
-        scalar_t* out = pf + k * kPer;
+                       g + rk[j] * kParams, gP, gcol);
+        scalar_t* out = pf + j * kPer;
         for (int i = 0; i < 3; ++i) {
           for (int c = 0; c < 3; ++c) {  // world gradient: R^T gP
             out[3 * i + c] = v.R[c] * gP[i][0] + v.R[3 + c] * gP[i][1] + v.R[6 + c] * gP[i][2];
@@ -130,9 +133,9 @@ std::vector<torch::Tensor> setup_backward(const torch::Tensor& vertices,
     scalar_t* dc = d_colors.data_ptr<scalar_t>();
     scalar_t* dop = d_opacities.data_ptr<scalar_t>();
     scalar_t* ds = d_sigma.data_ptr<scalar_t>();
-    for (int64_t k = 0; k < n; ++k) {
-      const int64_t* face = f + 3 * idx[k];
-      const scalar_t* in = pf + k * kPer;
+    for (int64_t j = 0; j < n; ++j) {
+      const int64_t* face = f + 3 * kp[j];
+      const scalar_t* in = pf + j * kPer;
       for (int i = 0; i < 3; ++i) {
         for (int c = 0; c < 3; ++c) {
           dv[3 * face[i] + c] += in[3 * i + c];
@@ -140,8 +143,8 @@ std::vector<torch::Tensor> setup_backward(const torch::Tensor& vertices,
         }
       }
       scalar_t o;
-      dop[face[min_opacity(op, face, &o)]] += g[k * kParams + kOpacity];
-      ds[idx[k]] += g[k * kParams + kSigma];
+      dop[face[min_opacity(op, face, &o)]] += g[rk[j] * kParams + kOpacity];
+      ds[kp[j]] += g[rk[j] * kParams + kSigma];
     }
   });
   return {d_vertices, d_colors, d_opacities, d_sigma};

@@ -15,7 +15,6 @@
 
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 
 #ifdef __CUDACC__
 #define LTS_HD __host__ __device__ __forceinline__
@@ -31,60 +30,9 @@ constexpr int kParams = 27;
 constexpr int kGrads = 26;  // every parameter but the support threshold
 constexpr int kLine = 0, kColor = 9, kInvDepth = 18, kOpacity = 21, kSigma = 22, kNormal = 23;
 
-// exp and log for the window m^sigma = exp(sigma log m). libm's scalar calls dominate the per-pair
-// cost in float32, so float uses inlined Cephes polynomials (about 1 ulp for the arguments met
-// here: log of m in (0, ~1], exp of values <= 0); double keeps libm.
-LTS_HD uint32_t bits_of(float x) {
-  uint32_t b;
-  memcpy(&b, &x, sizeof b);
-  return b;
-}
-LTS_HD float float_of(uint32_t b) {
-  float x;
-  memcpy(&x, &b, sizeof x);
-  return x;
-}
-
-LTS_HD float exponential(float x) {
-  x = x < -87.0f ? -87.0f : (x > 88.0f ? 88.0f : x);
-  const float n = floorf(x * 1.44269504088896341f + 0.5f);
-  x = x - n * 0.693359375f + n * 2.12194440e-4f;
-  float y = 1.9875691500e-4f;
-  y = y * x + 1.3981999507e-3f;
-  y = y * x + 8.3334519073e-3f;
-  y = y * x + 4.1665795894e-2f;
-  y = y * x + 1.6666665459e-1f;
-  y = y * x + 5.0000001201e-1f;
-  y = y * x * x + x + 1.0f;
-  return y * float_of(static_cast<uint32_t>(static_cast<int>(n) + 127) << 23);  // y 2^n
-}
-LTS_HD double exponential(double x) { return exp(x); }
-LTS_HD float logarithm(float x) {
-  if (x < 1.17549435e-38f) return logf(x);  // subnormal
-  const uint32_t b = bits_of(x);
-  int e = static_cast<int>((b >> 23) & 0xffu) - 126;
-  float m = float_of((b & 0x807fffffu) | 0x3f000000u);  // x = m 2^e, m in [0.5, 1)
-  if (m < 0.707106781186547524f) {
-    e -= 1;
-    m = m + m - 1.0f;
-  } else {
-    m = m - 1.0f;
-  }
-  const float z = m * m;
-  float y = 7.0376836292e-2f;
-  y = y * m - 1.1514610310e-1f;
-  y = y * m + 1.1676998740e-1f;
-  y = y * m - 1.2420140846e-1f;
-  y = y * m + 1.4249322787e-1f;
-  y = y * m - 1.6668057665e-1f;
-  y = y * m + 2.0000714765e-1f;
-  y = y * m - 2.4999993993e-1f;
-  y = y * m + 3.3333331174e-1f;
-  y = y * m * z;
-  const float ef = static_cast<float>(e);
-  y += -2.12194440e-4f * ef - 0.5f * z;
-  return m + y + 0.693359375f * ef;
-}
+LTS_HD float exponential(float a) { return expf(a); }
+LTS_HD double exponential(double a) { return exp(a); }
+LTS_HD float logarithm(float a) { return logf(a); }
 LTS_HD double logarithm(double a) { return log(a); }
 
 template <typename T>
@@ -173,8 +121,10 @@ struct PixelState {
   T weight_sum;      // accumulated alpha
   T depth_sum;       // sum w z
   T normal[3];
-  T depth_mean;      // running weighted mean of z (Welford), for the distortion term
-  T depth_m2;        // running sum w (z - mean)^2
+  // Distortion: sum_{i<j} w_i w_j (z_i - z_j)^2 = A S2 - S1^2 with S1, S2 sums of w (z - c) and
+  // w (z - c)^2 for any shift c; c = depth of the first pair keeps the difference well
+  // conditioned without a per-pair division.
+  T depth_shift, shifted_sum, shifted_sq;
   T median;
   T best_weight;
   int median_entry;  // position in the tile's list of the median triangle, -1 if none
@@ -184,7 +134,7 @@ struct PixelState {
 
   LTS_HD void reset() {
     transmittance = T(1);
-    weight_sum = depth_sum = depth_mean = depth_m2 = median = best_weight = T(0);
+    weight_sum = depth_sum = depth_shift = shifted_sum = shifted_sq = median = best_weight = T(0);
     for (int c = 0; c < 3; ++c) rgb[c] = normal[c] = T(0);
     median_entry = last_entry = -1;
     best = -1;
@@ -206,11 +156,12 @@ struct PixelState {
       rgb[c] += weight * colour[c];
       normal[c] += weight * p[kNormal + c];
     }
+    if (last_entry < 0) depth_shift = z;
+    const T dz = z - depth_shift;
+    shifted_sum += weight * dz;
+    shifted_sq += weight * dz * dz;
     depth_sum += weight * z;
     weight_sum += weight;
-    const T delta = z - depth_mean;
-    depth_mean += weight / weight_sum * delta;
-    depth_m2 += weight * delta * (z - depth_mean);
     if (transmittance > Thresholds<T>::median_transmittance) {
       median = z;
       median_entry = entry;
@@ -222,6 +173,11 @@ struct PixelState {
     transmittance = next;
     last_entry = entry;
     return weight;
+  }
+
+  LTS_HD T distortion() const {
+    const T d = weight_sum * shifted_sq - shifted_sum * shifted_sum;
+    return d > T(0) ? d : T(0);
   }
 };
 
@@ -236,15 +192,15 @@ struct PixelGrad {
 
   // Back-propagates through one composited pair, accumulating parameter gradients into g.
   LTS_HD void unblend(const T* p, T x, T y, const Window<T>& w, int entry, T* g) {
-    const T one_minus = T(1) - w.alpha;
-    transmittance = transmittance / one_minus;
+    const T keep = T(1) / (T(1) - w.alpha);  // 1 / (1 - alpha)
+    transmittance = transmittance * keep;
     T colour[3], z;
     eval_attributes(p, w, colour, z);
     const T weight = w.alpha * transmittance;
     const T dz_mean = z - depth_mean;
     T d_weight = d_depth * z + d_alpha + d_distortion * (depth_m2 + weight_sum * dz_mean * dz_mean);
     for (int c = 0; c < 3; ++c) d_weight += d_rgb[c] * colour[c] + d_normal[c] * p[kNormal + c];
-    const T d_alpha_pair = transmittance * d_weight - suffix / one_minus;
+    const T d_alpha_pair = transmittance * d_weight - suffix * keep;
     suffix += weight * d_weight;
     T d_colour[3], d_normal_pair[3];
     for (int c = 0; c < 3; ++c) {
