@@ -150,7 +150,8 @@ def record(
 ) -> None:
     """Record a session from the devices of a rig.yaml, or from a simulated scene through mock devices.
 
-    SIGINT/SIGTERM finish the file cleanly; a full disk stops recording with a valid file.
+    SIGINT/SIGTERM finish the file cleanly; a full disk stops recording with a valid file and exit
+    status 1.
     """
     from rig.drivers.base import DeviceError
     from rig.record import Recording
@@ -199,6 +200,8 @@ def record(
         emit_json(summary)
     else:
         console.print(f"wrote {out}: " + ", ".join(f"{t} {n}" for t, n in sorted(summary["written"].items())))
+    if summary.get("error"):
+        raise SystemExit(1)  # the file is valid, but the recording stopped early
 
 
 @app.command()
