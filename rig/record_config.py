@@ -23,6 +23,7 @@ import yaml
 
 from rig.clock import CLOCK_OPTIONS
 from rig.errors import InputError
+from rig.session.recorder import DROP_POLICIES
 
 KINDS = ("oak", "livox", "ld06", "rplidar", "ouster")
 _DEVICE_KEYS = {
@@ -35,6 +36,7 @@ _DEVICE_KEYS = {
 _REQUIRED = {"ld06": {"port"}, "rplidar": {"port"}, "ouster": set()}
 ROLES = ("image", "camera_info", "points", "imu")
 RECORDER_OPTIONS = ("queue_size", "policy", "image_format", "chunk_mb", "min_free_mb")
+IMAGE_FORMATS = ("jpeg", "png", "raw")
 
 
 @dataclass
@@ -110,6 +112,16 @@ def parse_config(data: Any, source: str = "rig.yaml") -> RigConfig:
         if unknown:
             raise InputError(
                 f"unknown option(s) {unknown}; expected some of {list(allowed)}", path=source, field=key
+            )
+    for key, value in {**data.get("clock", {}), **data.get("recorder", {})}.items():
+        section = "clock" if key in CLOCK_OPTIONS else "recorder"
+        if key in ("policy", "image_format"):
+            allowed = DROP_POLICIES if key == "policy" else IMAGE_FORMATS
+            if value not in allowed:
+                raise InputError(f"{value!r} is not one of {allowed}", path=source, field=f"recorder.{key}")
+        elif isinstance(value, bool) or not isinstance(value, int | float) or value <= 0:
+            raise InputError(
+                f"expected a positive number, got {value!r}", path=source, field=f"{section}.{key}"
             )
     return RigConfig(devices, dict(data.get("clock", {})), dict(data.get("recorder", {})), data)
 

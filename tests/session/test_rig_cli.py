@@ -59,6 +59,10 @@ def test_bad_config_is_one_line_naming_the_field(tmp_path: Path) -> None:
         parse_config({"devices": [{"name": "a", "kind": "oak"}, {"name": "b", "kind": "velodyne"}]})
     with pytest.raises(InputError, match="unknown option"):
         parse_config({"devices": [{"name": "a", "kind": "livox", "baud": 3}]})
+    with pytest.raises(InputError, match=r"recorder\.min_free_mb: expected a positive number, got '1e12'"):
+        parse_config({"devices": [{"name": "a", "kind": "oak"}], "recorder": {"min_free_mb": "1e12"}})
+    with pytest.raises(InputError, match=r"recorder\.policy"):
+        parse_config({"devices": [{"name": "a", "kind": "oak"}], "recorder": {"policy": "drop-all"}})
     cfg = parse_config({"devices": [{"name": "cam", "kind": "oak", "topics": {"image": "/img"}}]})
     assert cfg.devices[0].topics == {"image": "/img", "camera_info": "/cam/camera_info", "imu": "/cam/imu"}
     result = rig("record", "--out", tmp_path / "x.mcap")
@@ -108,3 +112,27 @@ def test_record_from_config_with_two_serial_lidars(tmp_path: Path) -> None:
     assert report["session"]["rig_yaml"]["clock"] == {"window_s": 30}
     assert report["topics"]["/back/scan"]["count"] == summary["written"]["/back/scan"]
     assert not report["truncated"]
+
+
+def test_full_disk_stops_with_a_message_a_valid_file_and_exit_1(tmp_path: Path) -> None:
+    def revolution(t_rel_ns: int):
+        return np.full(450, 2.0), np.full(450, 90.0)
+
+    out = tmp_path / "full.mcap"
+    with FakeSerialLidar(tmp_path / "ttyLD", revolution, "ld06", 10.0) as ld:
+        config = tmp_path / "rig.yaml"
+        # a reserve larger than any disk: the recorder sees a "full" disk at once
+        config.write_text(
+            f"devices:\n  - {{name: front, kind: ld06, port: {ld.link}}}\n"
+            "recorder: {min_free_mb: 1.0e+12}\n"
+        )
+        result = rig("record", "--config", config, "--out", out, "--duration", 5, "--json")
+    assert result.returncode == 1
+    assert "disk almost full" in " ".join(result.stderr.split())
+    assert "disk almost full" in json.loads(result.stdout)["error"]
+    report = json.loads(rig("info", out, "--json").stdout)
+    assert (
+        not report["truncated"]
+        and report["finished"]
+        and "disk almost full" in report["errors"]["write_error"]
+    )
