@@ -6,6 +6,9 @@ shared data types. Public API:
 - boards and intrinsics: :class:`ChessboardTarget`, :class:`CharucoTarget`, :func:`detect_views`,
   :func:`calibrate_intrinsics` → :class:`IntrinsicsResult`;
 - targetless extrinsic: :class:`ExtrinsicPair`, :func:`refine_extrinsic` → :class:`ExtrinsicResult`;
+- board extrinsic: :class:`BoardObservation`, :func:`board_observations`, :func:`calibrate_with_board`;
+- time offset: :func:`estimate_time_offset` → :class:`TimeOffsetResult` (from angular velocities);
+- sessions: :func:`calibrate_session` (time offset, then targetless extrinsic from a rough guess);
 - quality pictures: :func:`write_comparison`;
 - point clouds: :func:`read_point_cloud` (PCD ascii/binary/binary_compressed, KITTI ``.bin``).
 """
@@ -14,9 +17,13 @@ from calib.boards import BoardView, CharucoTarget, ChessboardTarget, detect_view
 from calib.intrinsics import IntrinsicsResult, calibrate_intrinsics
 from calib.overlay import write_comparison
 from calib.pointcloud_io import PointCloud, read_point_cloud
+from calib.session_calib import calibrate_session
+from calib.target_based import BoardObservation, board_observations, calibrate_with_board
 from calib.targetless import ExtrinsicPair, ExtrinsicResult, pose_difference, refine_extrinsic
+from calib.time_offset import TimeOffsetResult, estimate_time_offset
 
 __all__ = [
+    "BoardObservation",
     "BoardView",
     "CharucoTarget",
     "ChessboardTarget",
@@ -24,8 +31,13 @@ __all__ = [
     "ExtrinsicResult",
     "IntrinsicsResult",
     "PointCloud",
+    "TimeOffsetResult",
+    "board_observations",
     "calibrate_intrinsics",
+    "calibrate_session",
+    "calibrate_with_board",
     "detect_views",
+    "estimate_time_offset",
     "pose_difference",
     "read_point_cloud",
     "refine_extrinsic",

@@ -8,11 +8,13 @@ Coarse to fine, over one or more (image, cloud) pairs:
    information between LiDAR intensity and image grey level (sharp near the optimum);
 3. uncertainty: step 2's local search re-run on random halves of the points; the spread of the
    results is the reported standard deviation, and the verdict is ``poorly constrained`` when it
-   (or the data) is too weak, with the reason.
+   (or the data) is too weak, with the reason. When the translation spreads too much (far
+   structure only, typical of one outdoor frame), the guess's translation is kept and only the
+   rotation is refined: a fine stage must not drift away from a good start on noise.
 
-The increment ``x`` is ``(rotation vector in degrees (3), translation in decimetres (3))`` applied
-on the camera side: ``T = exp(x) @ T_init``. The two units make the search space isotropic enough
-for the derivative-free optimiser.
+The increment ``x`` is ``(rotation vector in degrees (3), translation in decimetres (3))``
+(:func:`apply_increment`). The two units make the search space isotropic enough for the
+derivative-free optimiser.
 """
 
 from __future__ import annotations
@@ -114,9 +116,11 @@ def pose_difference(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
 
 
 def apply_increment(x: np.ndarray, T_init: np.ndarray) -> np.ndarray:
-    """``exp(x) @ T_init`` for ``x`` = (rotation vector in degrees, translation in decimetres)."""
-    delta = make_transform(Rotation.from_rotvec(np.radians(x[:3])).as_matrix(), np.asarray(x[3:]) / 10.0)
-    return delta @ T_init
+    """``T_init`` with its rotation turned by ``x[:3]`` (rotation vector, degrees, camera frame)
+    and its translation moved by ``x[3:]`` (decimetres): the rotation pivots about the LiDAR
+    origin, so rotation and translation stay decoupled."""
+    R = Rotation.from_rotvec(np.radians(x[:3])).as_matrix() @ T_init[:3, :3]
+    return make_transform(R, T_init[:3, 3] + np.asarray(x[3:]) / 10.0)
 
 
 @dataclass(eq=False)
@@ -292,9 +296,9 @@ def refine_extrinsic(
             return _edge_cost(y, T_init, views, fields)
 
         if sigma == EDGE_STAGES[0][0]:
-            edge_init = -edge_cost(np.zeros(6))
+            edge_init = -float(edge_cost(np.zeros(6)))
         x = _grid_search(edge_cost, x, half, step)
-        edge_final = -edge_cost(x)
+        edge_final = -float(edge_cost(x))
 
     sigma, half, step = MI_STAGE
     blurred = [cv2.GaussianBlur(v.gray, (0, 0), _pixels(sigma, v)).astype(np.float32) for v in views]
@@ -304,40 +308,47 @@ def refine_extrinsic(
         (-LOCAL_TRANS_DM, LOCAL_TRANS_DM)
     ] * 3
 
-    def local(subsets: list[np.ndarray] | None) -> np.ndarray:
-        res = minimize(
-            _mi_cost,
-            x,
-            args=(T_init, views, fine, subsets),
-            method="Powell",
-            bounds=bounds,
-            options={"xtol": 1e-3, "ftol": 1e-7},
-        )
-        return res.x
+    def local(subsets: list[np.ndarray] | None, free_translation: bool = True) -> np.ndarray:
+        options = {"xtol": 1e-3, "ftol": 1e-7}
+        if free_translation:
+            args = (T_init, views, fine, subsets)
+            return minimize(_mi_cost, x, args=args, method="Powell", bounds=bounds, options=options).x
+
+        def rotation_only(r: np.ndarray) -> float:
+            return _mi_cost(np.r_[r, x[3:]], T_init, views, fine, subsets)
+
+        res = minimize(rotation_only, x[:3], method="Powell", bounds=bounds[:3], options=options)
+        return np.r_[res.x, x[3:]]
+
+    def spread(x_ref: np.ndarray, free_translation: bool) -> tuple[float, float]:
+        """Rotation (degrees) and translation (metres) spread of the local search on data halves."""
+        rng = np.random.default_rng(seed)
+        runs = []
+        for _ in range(BOOTSTRAP_RUNS):
+            subsets = [rng.random(len(v.points)) < 0.5 for v in views]
+            runs.append(local(subsets, free_translation) - x_ref)
+        rms = np.sqrt(np.mean(np.asarray(runs) ** 2, axis=0))
+        return float(np.linalg.norm(rms[:3])), float(np.linalg.norm(rms[3:])) / 10.0
 
     x_best = local(None)
+    rot_std, trans_std = spread(x_best, True)
+    if trans_std > MAX_TRANS_STD_M:
+        # The data cannot place the LiDAR: keep the guess's translation rather than drift with
+        # the noise, and refine (and judge) the rotation alone.
+        reasons.append(
+            f"translation not observable from these views (±{trans_std * 100:.1f} cm between halves "
+            f"of the data, limit {MAX_TRANS_STD_M * 100:.1f} cm): kept the initial translation; add "
+            "views with near structure"
+        )
+        x_best = local(None, free_translation=False)
+        rot_std, _ = spread(x_best, False)
     mi_init = -_mi_cost(np.zeros(6), T_init, views, fine)
     mi_final = -_mi_cost(x_best, T_init, views, fine)
-
-    rng = np.random.default_rng(seed)
-    spread = []
-    for _ in range(BOOTSTRAP_RUNS):
-        subsets = [rng.random(len(v.points)) < 0.5 for v in views]
-        spread.append(local(subsets) - x_best)
-    spread_arr = np.asarray(spread)
-    rot_std = float(np.sqrt(np.sum(np.mean(spread_arr[:, :3] ** 2, axis=0))))
-    trans_std = float(np.sqrt(np.sum(np.mean(spread_arr[:, 3:] ** 2, axis=0)))) / 10.0
-
     if mi_final <= mi_init:
         reasons.append("mutual information did not improve on the initial guess")
     if rot_std > MAX_ROT_STD_DEG:
         reasons.append(
             f"rotation varies by ±{rot_std:.2f}° between halves of the data (limit {MAX_ROT_STD_DEG}°)"
-        )
-    if trans_std > MAX_TRANS_STD_M:
-        reasons.append(
-            f"translation varies by ±{trans_std * 100:.1f} cm between halves of the data (limit "
-            f"{MAX_TRANS_STD_M * 100:.1f} cm): not observable from these views; add views with near structure"
         )
     at_bound = np.isclose(np.abs(x_best[3:]), LOCAL_TRANS_DM, atol=1e-3).any()
     if at_bound:

@@ -67,7 +67,7 @@ def test_session_command_writes_calibration(room_session: Path, tmp_path: Path) 
 
 def test_straight_drive_refuses_time_offset(room_session: Path, tmp_path: Path) -> None:
     # Drive 1.8 m straight ahead from the room run's first pose, without turning.
-    first = np.loadtxt(room_session / "ground_truth" / "trajectory.tum", max_rows=1)
+    first = np.loadtxt(room_session / "ground_truth" / "trajectory.tum")[0]
     times = np.arange(0.0, 6.0, 1 / 30)
     heading = np.array([0.996, 0.087, 0.0])
     rows = [[t, *(first[1:4] + 0.3 * t * heading), *first[4:8]] for t in times]

@@ -81,13 +81,14 @@ def _check_pair(real_data: Path, name: str, seed: int) -> None:
     T_init = perturb(T_ref, np.random.default_rng(seed))
     result = refine_extrinsic([pair], camera, T_init)
     rot, trans = pose_difference(result.T_cam_lidar, T_ref)
-    # Measured: 0.07–0.35° and 4–17 cm over several perturbations (see the README's calib section);
-    # a single frame of far structure does not pin the translation down, and the verdict says so
-    # through the translation spread.
+    # Measured over ten perturbations: 0.18–0.40° (README, calibration section). One frame of far
+    # structure does not place the LiDAR to centimetres: the refinement must say so and keep the
+    # guess's translation instead of drifting.
     assert rot < 0.5, rot
-    assert trans < 0.25, trans
+    np.testing.assert_allclose(result.T_cam_lidar[:3, 3], T_init[:3, 3])
+    assert result.verdict == "poorly constrained"
+    assert any("translation not observable" in r for r in result.reasons)
     assert result.mutual_information["final"] > result.mutual_information["init"]
-    assert result.translation_std_m > 0 and np.isfinite(result.rotation_std_deg)
 
 
 def test_real_pjlab_auto_pair(real_data) -> None:
