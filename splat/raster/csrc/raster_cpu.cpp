@@ -46,17 +46,20 @@ inline bool pair_box(const Bins& b, int k, int tx0, int ty0, Box& box) {
 }
 
 // Narrows [x0, x1] to the pixels of row y where every edge function can reach the support
-// threshold (padded by a pixel: the exact test is per pixel). False if the row is empty.
+// threshold. The exact test is per pixel, so the span only has to be a superset: each bound is
+// padded by 0.05 px plus a term for its rounding error, which grows with |b / a| (edges close to
+// horizontal). False if the row is empty.
 template <typename T>
 bool row_span(const T* p, const T inv_a[3], T y, int& x0, int& x1) {
   T lo = T(x0), hi = T(x1);
   for (int j = 0; j < 3; ++j) {
-    const T a = p[kLine + 3 * j];
-    const T bound = (p[kParams - 1] - (p[kLine + 3 * j + 1] * y + p[kLine + 3 * j + 2])) * inv_a[j];
+    const T a = p[kLine + 3 * j], b = p[kLine + 3 * j + 1];
+    const T bound = (p[kParams - 1] - (b * y + p[kLine + 3 * j + 2])) * inv_a[j];
+    const T pad = T(0.05) + T(1e-4) * std::fabs(b * inv_a[j]);
     if (a > T(0)) {
-      lo = std::max(lo, bound - T(1));
+      lo = std::max(lo, bound - pad);
     } else if (a < T(0)) {
-      hi = std::min(hi, bound + T(1));
+      hi = std::min(hi, bound + pad);
     }
   }
   if (!(lo <= hi)) return false;
