@@ -60,7 +60,7 @@ def fit_lower_envelope(
     t_device: np.ndarray,
     t_host: np.ndarray,
     min_span_s: float = 5.0,
-    offset_window_s: float = 2.0,
+    offset_window_s: float = 3.0,
     max_drift_ppm: float = 1000.0,
 ) -> ClockEstimate:
     """Fit the clock line under ``(N,)`` int64 pairs (N ≥ 1).
@@ -69,7 +69,7 @@ def fit_lower_envelope(
     ``max_drift_ppm`` (a burst of queued packets at start-up), only the offset is fitted: the
     lowest pair of the last ``offset_window_s``. Over a short span a drift cannot be told from
     jitter (3 ms of jitter over 1 s is 3000 ppm), and extrapolating a wrong one is worse than
-    ignoring it (50 ppm over a 2 s window is 0.1 ms).
+    ignoring it (50 ppm over a 3 s window is 0.15 ms).
     """
     order = np.argsort(t_device, kind="stable")
     dev = np.asarray(t_device, dtype=np.int64)[order]
