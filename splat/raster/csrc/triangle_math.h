@@ -91,13 +91,15 @@ LTS_HD void eval_attributes(const T* p, const Window<T>& w, T colour[3], T& dept
 template <typename T>
 LTS_HD void pair_backward(const T* p, T x, T y, const Window<T>& w, T depth, T d_alpha,
                           const T d_colour[3], T d_depth, const T d_normal[3], T* g) {
-  T d_l[3] = {T(0), T(0), T(0)};
+  T d_m = T(0);
   if (!w.clamped) {
     g[kOpacity] += d_alpha * w.intensity;
     const T d_intensity = d_alpha * p[kOpacity];
     g[kSigma] += d_intensity * w.intensity * w.log_m;
-    d_l[w.arg] += d_intensity * p[kSigma] * w.intensity / w.m;
+    d_m = d_intensity * p[kSigma] * w.intensity / w.m;
   }
+  // Selects rather than d_l[w.arg]: a run-time index would keep d_l in memory.
+  T d_l[3] = {w.arg == 0 ? d_m : T(0), w.arg == 1 ? d_m : T(0), w.arg == 2 ? d_m : T(0)};
   const T d_inv = -depth * depth * d_depth;
   for (int j = 0; j < 3; ++j) {
     for (int c = 0; c < 3; ++c) {
