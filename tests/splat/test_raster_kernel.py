@@ -137,3 +137,19 @@ def test_cpu_kernel_is_deterministic() -> None:
 
     first, second = run(), run()
     assert all(torch.equal(a, b) for a, b in zip(first, second, strict=True))
+
+
+def test_pose_gradient_matches_the_reference() -> None:
+    scene = CASES["random"](torch.float64)
+    x, y, z = 0.03, -0.05, 0.08  # small rotation vector
+    R = torch.linalg.matrix_exp(torch.tensor([[0, -z, y], [z, 0, -x], [-y, x, 0]], dtype=torch.float64))
+    pose = torch.eye(4, dtype=torch.float64)
+    pose[:3, :3], pose[:3, 3] = R, torch.tensor([0.05, -0.02, 0.1], dtype=torch.float64)
+    grads = []
+    for backend in ("reference", "cpu"):
+        T = pose.clone().requires_grad_(True)
+        out = render(*scene.tensors(), CAMERA, T, backend=backend)
+        (out.rgb.sum() + out.depth.sum()).backward()
+        grads.append(T.grad)
+    assert float(grads[0].norm()) > 0
+    assert rel_l2(*grads) < 1e-5
