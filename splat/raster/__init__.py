@@ -1,9 +1,9 @@
 """Differentiable triangle rasteriser (Triangle Splatting / TS+ windows).
 
-Stages: :mod:`~splat.raster.project` (per-triangle set-up, autograd) →
-:mod:`~splat.raster.binning` (16x16 tiles) → a rasteriser backend: the pure-PyTorch
-:mod:`~splat.raster.reference`, or a compiled kernel (``csrc/``, CPU or CUDA) via
-:mod:`~splat.raster.kernel`. :func:`render` runs them all.
+Stages: per-triangle set-up (:mod:`~splat.raster.project`, PyTorch; compiled twin in
+:mod:`~splat.raster.setup_kernel`) → :mod:`~splat.raster.binning` (16x16 tiles) → a rasteriser:
+the pure-PyTorch :mod:`~splat.raster.reference` (the specification), or a compiled kernel
+(``csrc/``, CPU or CUDA) via :mod:`~splat.raster.kernel`. :func:`render` runs them all.
 """
 
 from splat.raster.extension import BackendUnavailableError

@@ -1,8 +1,9 @@
-"""Per-triangle set-up shared by every backend: projection, culling, depth order, and the window
-function's coefficients (the numbers the kernels read, see ``csrc/triangle_math.h``).
+"""Per-triangle set-up: projection, culling, depth order, and the window function's coefficients
+(the numbers the rasterisers read, see ``csrc/triangle_math.h``).
 
-Everything here is O(triangles) PyTorch and differentiable with autograd; the rasterisers only
-ever see the pre-processed ``params`` rows.
+This PyTorch version (differentiable with autograd) is the specification and the reference
+backend's set-up; the compiled backends run the same maths in ``csrc/triangle_setup.h`` with a
+hand-written backward (:mod:`splat.raster.setup_kernel`), and the tests hold the two together.
 """
 
 from __future__ import annotations
