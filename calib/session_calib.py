@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from calib.motion import camera_angular_velocity, imu_angular_velocity, lidar_angular_velocity
 from calib.pointcloud_io import PointCloud
@@ -23,9 +24,10 @@ from rig.errors import InputError
 from rig.messages import Frame, ImuSample, Scan
 from rig.session import DEFAULT_TOPICS, SessionReader
 
-#: Image + LiDAR pairs used for the extrinsic, and the LiDAR time window (s) around each frame.
+#: Image + LiDAR pairs used for the extrinsic, and the LiDAR time window (s) around each frame:
+#: a whole sweep when the gyro can de-skew it, a short slice otherwise.
 EXTRINSIC_PAIRS = 6
-POINT_WINDOW_S = 0.02
+POINT_WINDOW_S = {"deskewed": 0.05, "raw": 0.02}
 LIDAR_MOTION = ("auto", "imu", "odometry")
 
 
@@ -78,8 +80,10 @@ def extrinsic_pairs(
     data: SessionData, time_offset_s: float, motion: tuple[np.ndarray, np.ndarray] | None = None
 ) -> list[ExtrinsicPair]:
     """``EXTRINSIC_PAIRS`` frames spread over the session, each with the LiDAR points measured
-    within ``POINT_WINDOW_S`` of it (LiDAR times shifted onto the camera clock). With the camera's
-    angular speed ``motion`` (times, speeds), each pair is the calmest frame of its stretch."""
+    within ``POINT_WINDOW_S`` of it (LiDAR times shifted onto the camera clock). With an IMU on the
+    LiDAR, each point is rotated to where the LiDAR pointed at the frame's time (gyro rate at the
+    frame, constant over the window; the translation in 50 ms of driving is left). With the
+    camera's angular speed ``motion`` (times, speeds), each pair is the calmest frame of its stretch."""
     if not data.scans:
         return []
     frame_t = np.array([f.t_host for f in data.frames], dtype=np.float64) * 1e-9
@@ -93,6 +97,9 @@ def extrinsic_pairs(
             index = int(stretch[np.argmin(speed)])
         chosen.append(index)
     scan_t = np.array([s.t_host for s in data.scans], dtype=np.float64) * 1e-9 + time_offset_s
+    gyro_t, gyro = imu_angular_velocity(data.imu)
+    gyro_t = gyro_t + time_offset_s
+    window = POINT_WINDOW_S["deskewed" if len(gyro_t) else "raw"]
     pairs = []
     for index in chosen:
         t = frame_t[index]
@@ -100,8 +107,13 @@ def extrinsic_pairs(
         for j in np.flatnonzero(np.abs(scan_t - t) < 0.5):
             scan = data.scans[j]
             times = scan.t_host * 1e-9 + time_offset_s + np.asarray(scan.point_time_s, dtype=np.float64)
-            near = np.abs(times - t) < POINT_WINDOW_S
-            points.append(np.asarray(scan.points, dtype=np.float64)[near])
+            near = np.abs(times - t) < window
+            pts = np.asarray(scan.points, dtype=np.float64)[near]
+            if len(gyro_t):
+                omega = np.array([np.interp(t, gyro_t, gyro[:, k]) for k in range(3)])
+                # Body rates: R(t)^T R(t_p) = exp(w (t_p - t)), applied to each point.
+                pts = Rotation.from_rotvec(np.outer(times[near] - t, omega)).apply(pts)
+            points.append(pts)
             intensity.append(np.asarray(scan.intensity, dtype=np.float32)[near])
         if points:
             pairs.append(
