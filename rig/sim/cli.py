@@ -33,9 +33,14 @@ def sim(
     image_noise: float = typer.Option(0.0, "--image-noise", help="Pixel noise std (grey levels)."),
     exposure_jitter: float = typer.Option(0.0, "--exposure-jitter", help="Per-frame gain std (relative)."),
     lidar: str = typer.Option(
-        "rosette", "--lidar", help="LiDAR: rosette (Livox-like) or spinning (Ouster-like)."
+        "mid360",
+        "--lidar",
+        help="LiDAR: mid360 (Livox Mid-360-like, 360° non-repetitive), rosette (Livox Avia-like, 70° field "
+        "of view) or spinning (Ouster-like, 32 beams).",
     ),
-    lidar_points: int = typer.Option(20000, "--lidar-points", help="Points per rosette sweep."),
+    lidar_points: int = typer.Option(
+        20000, "--lidar-points", help="Points per sweep of the mid360/rosette patterns."
+    ),
     range_noise: float = typer.Option(0.015, "--range-noise", help="LiDAR range noise std (m)."),
     dropout: float = typer.Option(0.02, "--dropout", help="Fraction of LiDAR returns lost."),
     max_range: float = typer.Option(40.0, "--max-range", help="LiDAR maximum range (m)."),

@@ -49,7 +49,7 @@ class SimConfig:
     image_format: str = "png"
     image_noise: float = 0.0
     exposure_jitter: float = 0.0
-    lidar: str = "rosette"
+    lidar: str = "mid360"
     lidar_rate_hz: float = 10.0
     lidar_points: int = 20000
     range_noise_m: float = 0.015

@@ -16,7 +16,10 @@ from rig.errors import InputError
 from rig.sim.motion import Motion
 from rig.sim.world import World
 
-LidarKind = Literal["rosette", "spinning"]
+LidarKind = Literal["mid360", "rosette", "spinning"]
+LIDAR_KINDS: tuple[str, ...] = ("mid360", "rosette", "spinning")
+# Mid-360-like vertical field of view (degrees).
+_MID360_ELEVATION_DEG = (-7.0, 52.0)
 #: Time step of the sensor poses a sweep's points are cast from (s).
 POSE_STEP_S = 1e-4
 #: Points whose ray meets the surface at a cosine below this are lost (grazing incidence).
@@ -28,8 +31,10 @@ class LidarModel:
     """Scan pattern and error model of a simulated LiDAR (frame: x forward, y left, z up).
 
     Attributes:
-        kind: ``rosette`` (Livox Avia-like: two Risley prisms, non-repetitive, 70° circular field of
-            view) or ``spinning`` (Ouster OS1-32-like: 32 beams over ±22.5°, 1024 columns).
+        kind: ``mid360`` (Livox Mid-360-like: non-repetitive, 360° around, -7° to 52° up; the
+            default, as on most small robots), ``rosette`` (Livox Avia-like: two Risley prisms,
+            non-repetitive, 70° circular field of view) or ``spinning`` (Ouster OS1-32-like: 32
+            beams over ±22.5°, 1024 columns).
         rate_hz: sweeps per second.
         points_per_scan: rays per sweep of the rosette (the spinning pattern has beams × columns).
         range_noise_m: standard deviation of the Gaussian range noise.
@@ -37,7 +42,7 @@ class LidarModel:
         min_range_m, max_range_m: returns outside these ranges are lost.
     """
 
-    kind: LidarKind = "rosette"
+    kind: LidarKind = "mid360"
     rate_hz: float = 10.0
     points_per_scan: int = 20000
     range_noise_m: float = 0.015
@@ -46,8 +51,10 @@ class LidarModel:
     max_range_m: float = 40.0
 
     def __post_init__(self) -> None:
-        if self.kind not in ("rosette", "spinning"):
-            raise InputError(f"unknown LiDAR {self.kind!r}; expected rosette or spinning", field="lidar")
+        if self.kind not in LIDAR_KINDS:
+            raise InputError(
+                f"unknown LiDAR {self.kind!r}; expected one of {', '.join(LIDAR_KINDS)}", field="lidar"
+            )
         if self.range_noise_m < 0 or not 0 <= self.dropout < 1 or self.points_per_scan < 1:
             raise InputError(
                 "need range noise >= 0, 0 <= dropout < 1 and points per scan >= 1", field="lidar"
@@ -60,8 +67,22 @@ class LidarModel:
     def pattern(self, t_start_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Unit ray directions ``(N, 3)`` and times ``(N,)`` in seconds after ``t_start_s`` of a sweep.
 
-        The rosette follows absolute time, so consecutive sweeps cover different directions.
+        The non-repetitive patterns follow absolute time, so consecutive sweeps cover different
+        directions.
         """
+        if self.kind == "mid360":
+            step = self.period_s / self.points_per_scan
+            t = np.arange(self.points_per_scan) * step
+            # One turn of the mirror per sweep; elevations from a low-discrepancy sequence indexed by
+            # absolute time, so that sweeps interleave instead of repeating.
+            k = np.rint((t_start_s + t) / step).astype(np.int64)
+            low, high = np.deg2rad(_MID360_ELEVATION_DEG)
+            elevation = low + (high - low) * np.mod(k * 0.7548776662466927, 1.0)
+            azimuth = 2 * np.pi * (t / self.period_s + np.mod(k * 0.5698402909980532, 1.0) / 360.0)
+            dirs = np.column_stack(
+                [np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)]
+            )
+            return dirs, t
         if self.kind == "rosette":
             t = np.arange(self.points_per_scan) * (self.period_s / self.points_per_scan)
             tau = t_start_s + t
