@@ -20,7 +20,7 @@ from rig.errors import InputError, OutOfRangeError
 from rig.version import package_version
 
 #: Console for human-readable output and progress bars (stderr, so stdout stays machine-readable).
-console = Console(stderr=True)
+console = Console(stderr=True, soft_wrap=True)
 
 EXIT_BAD_INPUT = 2
 
@@ -50,7 +50,10 @@ def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
 
     def main() -> None:
         try:
-            app(prog_name=prog_name, standalone_mode=False)
+            # Outside standalone mode Click returns the code of a typer.Exit instead of raising it.
+            code = app(prog_name=prog_name, standalone_mode=False)
+            if isinstance(code, int) and code != 0:
+                sys.exit(code)
         except (InputError, OutOfRangeError) as exc:
             console.print(f"[bold red]error:[/] {exc}", highlight=False, markup=True)
             sys.exit(EXIT_BAD_INPUT)
