@@ -16,6 +16,7 @@ from rig import trajectory_cli
 from rig.cli_support import run_app, version_callback
 from rig.sim import cli as sim_cli
 from slam_bridge import cli as slam_cli
+from slam_bridge.prepare_cli import prepare_command
 from splat import cli as splat_cli
 
 app = typer.Typer(
@@ -32,6 +33,7 @@ app.add_typer(trajectory_cli.app, name="trajectory")
 app.command("sim")(sim_cli.sim)
 app.command("eval")(eval_command)
 app.add_typer(slam_cli.app, name="slam")
+app.command("prepare")(prepare_command)
 app.add_typer(calib_cli.app, name="calibrate")
 app.add_typer(splat_cli.bench_app, name="bench")
 

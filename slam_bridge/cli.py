@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from pathlib import Path
 
+import numpy as np
 import typer
 
 from rig.cli_support import console, emit_json
@@ -58,4 +59,59 @@ def import_command(
         f"wrote {out}/mesh.ply and trajectory.tum (removed {report.unused_vertices} unused vertices, "
         f"{report.degenerate_faces} degenerate and {report.duplicate_faces} duplicate faces; "
         f"re-oriented {report.flipped_faces} faces)"
+    )
+
+
+@app.command("run")
+def run_command(
+    session: Path = typer.Argument(
+        ..., help="Session .mcap with a LiDAR point-cloud topic (per-point times)."
+    ),
+    out: Path = typer.Option(..., "--out", help="SLAM folder to write: mesh.ply + trajectory.tum."),
+    calib: Path | None = typer.Option(
+        None, "--calib", help="calib.yaml; only checked here (the mapper uses the LiDAR alone)."
+    ),
+    points_topic: str | None = typer.Option(None, "--points-topic", help="Point-cloud topic, if several."),
+    voxel: float | None = typer.Option(
+        None, "--voxel", help="KISS-ICP voxel size in m (default: from the data)."
+    ),
+    tsdf_voxel: float = typer.Option(0.04, "--tsdf-voxel", help="TSDF voxel size in m (mesh resolution)."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
+) -> None:
+    """Fallback mapper: KISS-ICP LiDAR odometry (deskewed scans) and a TSDF mesh, written like an import."""
+    from rich.progress import Progress
+
+    from rig.calibration import load_calibration
+    from rig.session import SessionReader
+    from slam_bridge.fallback_mapper import MapperConfig, run_mapper
+    from slam_bridge.mesh_cleanup import clean_mesh
+    from slam_bridge.session_streams import find_topics
+    from slam_bridge.slam_dir import write_slam_dir
+
+    if calib is not None:
+        load_calibration(calib)
+    reader = SessionReader(session)
+    topic = find_topics(reader, points=points_topic).points
+    count = reader.topics()[topic].count
+    config = MapperConfig(voxel_size_m=voxel, tsdf_voxel_m=tsdf_voxel)
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("mapping (KISS-ICP + TSDF)", total=count)
+        result = run_mapper(reader.scans(topic), config, progress=lambda i: bar.update(task, completed=i + 1))
+    mesh, _report = clean_mesh(
+        result.mesh.vertices, result.mesh.faces, viewpoints=result.trajectory.translations
+    )
+    write_slam_dir(out, mesh, result.trajectory)
+    summary = {
+        "out": str(out),
+        "scans_used": result.scans_used,
+        "poses": len(result.trajectory),
+        "faces": len(mesh.faces),
+        "path_length_m": float(np.linalg.norm(np.diff(result.trajectory.translations, axis=0), axis=1).sum()),
+    }
+    if json_out:
+        emit_json(summary)
+        return
+    console.print(
+        f"wrote {out}/mesh.ply ({summary['faces']} faces) and trajectory.tum ({summary['poses']} poses, "
+        f"{summary['path_length_m']:.2f} m)"
     )

@@ -1,0 +1,74 @@
+"""Trajectory accuracy: absolute trajectory error after rigid alignment (as evo's APE does)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rig.errors import InputError
+from rig.trajectory import Trajectory
+from rig.transforms import make_transform
+
+
+def umeyama_alignment(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Rigid transform ``(4, 4)`` minimising ``Σ |T · source_i − target_i|²`` for points ``(N, 3)``
+    (Umeyama 1991, without scale)."""
+    if len(source) < 3:
+        raise InputError("need at least 3 matched positions to align trajectories", field="trajectory")
+    mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
+    U, _, Vt = np.linalg.svd((target - mu_t).T @ (source - mu_s))
+    D = np.eye(3)
+    D[2, 2] = np.sign(np.linalg.det(U @ Vt))
+    R = U @ D @ Vt
+    return make_transform(R, mu_t - R @ mu_s)
+
+
+def pose_alignment(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Rigid transform ``(4, 4)`` taking poses ``source`` ``(N, 4, 4)`` onto ``target``, using the
+    orientations too: the chordal mean of ``R_target_i R_source_iᵀ``, then the mean translation.
+
+    Unlike :func:`umeyama_alignment`, this stays well conditioned when the positions lie near a
+    line (a robot driving mostly straight), where a position-only fit leaves the rotation about
+    that line free — and a small rotation error there moves distant map points by centimetres.
+    """
+    M = np.einsum("nij,nkj->ik", target[:, :3, :3], source[:, :3, :3])
+    U, _, Vt = np.linalg.svd(M)
+    D = np.eye(3)
+    D[2, 2] = np.sign(np.linalg.det(U @ Vt))
+    R = U @ D @ Vt
+    return make_transform(R, np.mean(target[:, :3, 3] - source[:, :3, 3] @ R.T, axis=0))
+
+
+@dataclass(frozen=True)
+class AbsoluteTrajectoryError:
+    """Position error statistics (m) after aligning the estimate to the reference with ``T_ref_est``."""
+
+    rmse_m: float
+    mean_m: float
+    max_m: float
+    poses: int
+    T_ref_est: np.ndarray
+
+
+def absolute_trajectory_error(
+    estimate: Trajectory, reference: Trajectory, use_orientation: bool = False
+) -> AbsoluteTrajectoryError:
+    """ATE of ``estimate`` against ``reference``, compared at the estimate's stamps that the
+    reference covers (the reference interpolated there).
+
+    Args:
+        use_orientation: align with :func:`pose_alignment` (positions and orientations) instead of
+            the position-only Umeyama fit evo uses by default.
+    """
+    covered = reference.covers(estimate.t_ns)
+    if covered.sum() < 3:
+        raise InputError("the reference trajectory covers fewer than 3 of the estimate's stamps", field="t")
+    est = estimate.translations[covered]
+    ref_poses = reference.interpolate(estimate.t_ns[covered])
+    ref = ref_poses[:, :3, 3]
+    T = pose_alignment(estimate.poses[covered], ref_poses) if use_orientation else umeyama_alignment(est, ref)
+    errors = np.linalg.norm(est @ T[:3, :3].T + T[:3, 3] - ref, axis=1)
+    return AbsoluteTrajectoryError(
+        float(np.sqrt(np.mean(errors**2))), float(errors.mean()), float(errors.max()), int(covered.sum()), T
+    )

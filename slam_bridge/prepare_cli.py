@@ -1,0 +1,52 @@
+"""``lts prepare``: build the keyframe scene folder that training reads."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from rig.cli_support import console, emit_json
+
+
+def prepare_command(
+    session: Path = typer.Argument(..., help="Session .mcap (camera images + LiDAR point clouds)."),
+    calib: Path = typer.Option(..., "--calib", help="calib.yaml: camera, T_cam_lidar, time_offset_s."),
+    slam: Path = typer.Option(..., "--slam", help="SLAM folder (mesh.ply + trajectory.tum), from lts slam."),
+    out: Path = typer.Option(..., "--out", help="Scene folder to write."),
+    interval: float = typer.Option(0.5, "--keyframe-interval", help="Seconds between keyframes."),
+    test_every: int = typer.Option(8, "--test-every", help="Hold out every n-th keyframe for testing."),
+    image_topic: str | None = typer.Option(None, "--image-topic", help="Image topic, if several."),
+    points_topic: str | None = typer.Option(None, "--points-topic", help="Point-cloud topic, if several."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
+) -> None:
+    """Keyframes with poses, undistorted images, LiDAR depth images and normal priors (see README)."""
+    from rich.progress import Progress
+
+    from rig.calibration import load_calibration
+    from slam_bridge.scene_builder import PrepareConfig, build_scene
+
+    calibration = load_calibration(calib)
+    config = PrepareConfig(interval, test_every, image_topic=image_topic, points_topic=points_topic)
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("building keyframes", total=None)
+        keyframes = build_scene(
+            session,
+            calibration,
+            slam,
+            out,
+            config,
+            progress=lambda i, n: bar.update(task, completed=i, total=n),
+        )
+    summary = {
+        "out": str(out),
+        "keyframes": len(keyframes),
+        "train": sum(k.split == "train" for k in keyframes),
+        "test": sum(k.split == "test" for k in keyframes),
+    }
+    if json_out:
+        emit_json(summary)
+        return
+    console.print(
+        f"wrote {out}: {summary['keyframes']} keyframes ({summary['train']} train, {summary['test']} test)"
+    )

@@ -1,0 +1,182 @@
+"""``lts prepare``: keyframes with poses, undistorted images, LiDAR depth and normal priors."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from rig.calibration import Calibration
+from rig.errors import InputError
+from rig.messages import Frame, Scan
+from rig.session import SessionReader
+from rig.trajectory import Trajectory
+from rig.transforms import invert
+from slam_bridge.depth_image import remove_occluded, zbuffer_depth
+from slam_bridge.scene import Keyframe, write_scene_index
+from slam_bridge.session_streams import find_topics
+from slam_bridge.slam_dir import MESH_FILE, load_slam_dir
+
+
+@dataclass(frozen=True)
+class PrepareConfig:
+    """Settings of the scene builder.
+
+    Attributes:
+        keyframe_interval_s: one keyframe per this many seconds of camera frames (paper: ~0.5 s).
+        test_every: every n-th keyframe is held out for testing.
+        occlusion_window_px: window of the see-through test on LiDAR depth (0 disables it).
+        image_topic, points_topic: choose topics when a session has several.
+    """
+
+    keyframe_interval_s: float = 0.5
+    test_every: int = 8
+    occlusion_window_px: int = 7
+    image_topic: str | None = None
+    points_topic: str | None = None
+
+
+def camera_poses(trajectory: Trajectory, calibration: Calibration, t_cam_ns: np.ndarray) -> np.ndarray:
+    """``T_world_cam`` ``(N, 4, 4)`` at camera stamps ``(N,)``: the LiDAR trajectory at the LiDAR
+    time of each frame (camera time − ``time_offset_s``) composed with ``T_lidar_cam``."""
+    t_lidar = np.asarray(t_cam_ns, dtype=np.int64) - round(calibration.time_offset_s * 1e9)
+    return trajectory.interpolate(t_lidar) @ invert(calibration.T_cam_lidar)
+
+
+def select_keyframes(
+    frame_t_ns: np.ndarray, trajectory: Trajectory, calibration: Calibration, interval_s: float
+) -> np.ndarray:
+    """Indices of camera frames to keep: one per ``interval_s``, only where the trajectory covers them."""
+    t_lidar = frame_t_ns - round(calibration.time_offset_s * 1e9)
+    covered = np.flatnonzero(trajectory.covers(t_lidar))
+    if covered.size == 0:
+        raise InputError(
+            "the trajectory covers none of the camera frames (check time_offset_s and the SLAM folder)",
+            field="trajectory",
+        )
+    chosen = [covered[0]]
+    for i in covered[1:]:
+        if (frame_t_ns[i] - frame_t_ns[chosen[-1]]) * 1e-9 >= interval_s - 1e-6:
+            chosen.append(i)
+    return np.asarray(chosen)
+
+
+def deskewed_world_points(scan: Scan, trajectory: Trajectory) -> np.ndarray:
+    """World points ``(N, 3)`` of a scan, each moved by the trajectory pose at its own time (clamped
+    at the trajectory's ends)."""
+    poses = trajectory.interpolate(scan.point_times_ns(host=True), clamp=True)
+    points = scan.points.astype(np.float64)
+    return np.einsum("nij,nj->ni", poses[:, :3, :3], points) + poses[:, :3, 3]
+
+
+def normal_prior(
+    raycaster, T_world_cam: np.ndarray, rays_cam: np.ndarray, shape: tuple[int, int]
+) -> np.ndarray:
+    """Camera-frame normals ``(H, W, 3)`` of the mesh seen through each pixel ray (facing the camera)."""
+    import open3d as o3d
+
+    origins = np.broadcast_to(T_world_cam[:3, 3], rays_cam.shape)
+    dirs = rays_cam @ T_world_cam[:3, :3].T
+    rays = o3d.core.Tensor(np.concatenate([origins, dirs], axis=1).astype(np.float32))
+    hits = raycaster.cast_rays(rays)
+    normals_world = hits["primitive_normals"].numpy().astype(np.float64)
+    hit = np.isfinite(hits["t_hit"].numpy())
+    normals = normals_world @ T_world_cam[:3, :3]  # to the camera frame
+    facing = np.einsum("ij,ij->i", normals, rays_cam) > 0
+    normals[facing] *= -1
+    normals[~hit] = 0
+    return normals.reshape(*shape, 3).astype(np.float32)
+
+
+def build_scene(
+    session: str | Path,
+    calibration: Calibration,
+    slam_dir: str | Path,
+    out_dir: str | Path,
+    config: PrepareConfig = PrepareConfig(),
+    progress: Callable[[int, int], None] | None = None,
+) -> list[Keyframe]:
+    """Write the scene folder (see :mod:`slam_bridge.scene`) and return its keyframes."""
+    import open3d as o3d
+
+    reader = SessionReader(session)
+    topics = find_topics(reader, config.image_topic, config.points_topic)
+    mesh, trajectory = load_slam_dir(slam_dir)
+    camera = calibration.camera
+    target = camera.undistorted()
+    out = Path(out_dir)
+    for sub in ("images", "depth", "normals"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+
+    frames: list[Frame] = list(reader.frames(topics.image))
+    if not frames:
+        raise InputError(f"no images on {topics.image}", path=reader.path)
+    if (frames[0].width, frames[0].height) != (camera.width, camera.height):
+        raise InputError(
+            f"session images are {frames[0].width}x{frames[0].height} but the calibration's camera is "
+            f"{camera.width}x{camera.height}",
+            path=reader.path,
+            field="camera.width/height",
+        )
+    frame_t = np.array([f.t_host for f in frames], dtype=np.int64)
+    chosen = select_keyframes(frame_t, trajectory, calibration, config.keyframe_interval_s)
+    poses = camera_poses(trajectory, calibration, frame_t[chosen])
+    scans = list(reader.scans(topics.points))
+    offset_ns = round(calibration.time_offset_s * 1e9)
+    scan_t = np.array([s.t_host for s in scans], dtype=np.int64) + offset_ns  # on the camera clock
+
+    raycaster = o3d.t.geometry.RaycastingScene()
+    raycaster.add_triangles(
+        o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
+        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
+    )
+    u, v = np.meshgrid(np.arange(target.width), np.arange(target.height))
+    rays_cam = target.unproject(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
+    rays_cam /= np.linalg.norm(rays_cam, axis=1, keepdims=True)
+
+    keyframes = []
+    for n, (index, T_world_cam) in enumerate(zip(chosen, poses, strict=True)):
+        name = f"kf_{n:04d}"
+        image = camera.undistort_image(frames[index].image, target)
+        cv2.imwrite(str(out / "images" / f"{name}.png"), image)
+        # LiDAR returns between the previous and the next keyframe, deskewed by the trajectory.
+        lo = frame_t[chosen[n - 1]] if n > 0 else frame_t[index] - int(config.keyframe_interval_s * 1e9)
+        hi = (
+            frame_t[chosen[n + 1]]
+            if n + 1 < len(chosen)
+            else frame_t[index] + int(config.keyframe_interval_s * 1e9)
+        )
+        near = [s for s, t in zip(scans, scan_t, strict=True) if lo <= t <= hi]
+        if near:
+            world = np.concatenate([deskewed_world_points(s, trajectory) for s in near])
+            T_cam_world = invert(T_world_cam)
+            depth = zbuffer_depth(world @ T_cam_world[:3, :3].T + T_cam_world[:3, 3], target)
+            if config.occlusion_window_px:
+                depth = remove_occluded(depth, config.occlusion_window_px)
+        else:
+            depth = np.zeros((target.height, target.width), dtype=np.float32)
+        np.save(out / "depth" / f"{name}.npy", depth)
+        np.save(
+            out / "normals" / f"{name}.npy",
+            normal_prior(raycaster, T_world_cam, rays_cam, (target.height, target.width)),
+        )
+        split = "test" if config.test_every and n % config.test_every == config.test_every - 1 else "train"
+        keyframes.append(Keyframe(name, int(frame_t[index]), T_world_cam, split))
+        if progress is not None:
+            progress(n + 1, len(chosen))
+    shutil.copyfile(Path(slam_dir) / MESH_FILE, out / "mesh.ply")
+    write_scene_index(
+        out,
+        target,
+        keyframes,
+        {
+            "session": str(session),
+            "slam_dir": str(slam_dir),
+            "keyframe_interval_s": config.keyframe_interval_s,
+        },
+    )
+    return keyframes

@@ -1,0 +1,35 @@
+"""Virtual-rig sessions shared by the slam_bridge tests."""
+
+from pathlib import Path
+
+import pytest
+
+
+def simulate_room(out: Path, **overrides) -> Path:
+    from rig.sim.config import SimConfig
+    from rig.sim.simulate import simulate
+
+    simulate(SimConfig(**overrides), out)
+    return out
+
+
+@pytest.fixture(scope="session")
+def quick_room(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``lts sim --quick``: 3 s of the room preset, 160x120, Mid-360-like LiDAR (8000 points/scan)."""
+    from rig.sim.config import SimConfig
+    from rig.sim.simulate import simulate
+
+    out = tmp_path_factory.mktemp("quick_room")
+    simulate(SimConfig().quick(), out)
+    return out
+
+
+@pytest.fixture(scope="session")
+def gt_slam_dir(quick_room: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A SLAM folder made of the ground truth: the true mesh and the true LiDAR trajectory."""
+    import shutil
+
+    out = tmp_path_factory.mktemp("gt_slam")
+    shutil.copyfile(quick_room / "ground_truth" / "mesh.ply", out / "mesh.ply")
+    shutil.copyfile(quick_room / "ground_truth" / "trajectory_lidar.tum", out / "trajectory.tum")
+    return out

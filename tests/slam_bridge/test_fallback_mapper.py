@@ -1,0 +1,70 @@
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from eval.geometry import compare_meshes
+from eval.trajectory_metrics import absolute_trajectory_error
+from rig.session import SessionReader
+from rig.trajectory_io import read_tum
+from slam_bridge.fallback_mapper import cube_depth_images, fill_small_holes, run_mapper
+from slam_bridge.slam_dir import load_slam_dir
+
+
+def test_cube_map_puts_each_direction_on_its_face() -> None:
+    directions = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    faces = cube_depth_images(directions * np.arange(2, 8)[:, None], resolution=8)
+    for index, (T_sensor_face, depth) in enumerate(faces):
+        assert np.count_nonzero(depth) == 1
+        assert depth.max() == pytest.approx(index + 2)
+        # The face camera's optical axis is the direction that landed on it.
+        np.testing.assert_allclose(T_sensor_face[:3, 2], directions[index], atol=1e-12)
+
+
+def test_small_holes_are_filled_only_between_agreeing_returns() -> None:
+    depth = np.zeros((5, 5), dtype=np.float32)
+    depth[2, 1], depth[2, 3] = 2.0, 2.05  # agree: the gap between them is filled
+    depth[0, 0], depth[0, 2] = 1.0, 5.0  # a depth edge: left empty
+    filled = fill_small_holes(depth)
+    assert filled[2, 2] == pytest.approx(2.025)
+    assert filled[0, 1] == 0.0
+
+
+def test_mapper_on_a_quick_session(quick_room: Path) -> None:
+    reader = SessionReader(quick_room / "session.mcap")
+    result = run_mapper(reader.scans("/lidar/points"))
+    truth = read_tum(quick_room / "ground_truth" / "trajectory_lidar.tum")
+    ate = absolute_trajectory_error(result.trajectory, truth, use_orientation=True)
+    assert result.scans_used == 30
+    assert ate.rmse_m < 0.05
+    assert len(result.mesh.faces) > 1000
+
+
+def test_lts_slam_run_writes_a_slam_folder(quick_room: Path, tmp_path: Path) -> None:
+    lts = Path(sys.executable).parent / "lts"
+    args = [lts, "slam", "run", quick_room / "session.mcap", "--out", tmp_path / "slam", "--json"]
+    result = subprocess.run(args, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    mesh, trajectory = load_slam_dir(tmp_path / "slam")
+    assert summary["poses"] == len(trajectory) == 30 and len(mesh.faces) == summary["faces"] > 1000
+
+
+@pytest.mark.slow
+def test_mapper_on_the_default_room_meets_the_accuracy_targets(tmp_path: Path) -> None:
+    from rig.sim.config import SimConfig
+    from rig.sim.simulate import simulate
+
+    simulate(SimConfig(), tmp_path)  # 20 s of the room preset
+    result = run_mapper(SessionReader(tmp_path / "session.mcap").scans("/lidar/points"))
+    truth = read_tum(tmp_path / "ground_truth" / "trajectory_lidar.tum")
+    ate = absolute_trajectory_error(result.trajectory, truth, use_orientation=True)
+    assert ate.rmse_m < 0.03
+    mesh = result.mesh.copy()
+    mesh.apply_transform(ate.T_ref_est)
+    metrics = compare_meshes(mesh, trimesh.load(tmp_path / "ground_truth" / "mesh.ply", process=False), 0.1)
+    assert metrics.fscore > 0.8

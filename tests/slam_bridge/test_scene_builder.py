@@ -1,0 +1,118 @@
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import pytest
+import trimesh
+
+from rig import Calibration, CameraModel, InputError, load_calibration
+from rig.trajectory_io import read_tum, write_tum
+from slam_bridge.scene import load_scene
+from slam_bridge.scene_builder import build_scene
+
+
+def ground_truth_depth(mesh_path: Path, camera: CameraModel, T_world_cam: np.ndarray) -> np.ndarray:
+    """Depth (z) of the true mesh along every pixel ray, by an independent open3d ray cast."""
+    mesh = trimesh.load(mesh_path, process=False)
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.faces.astype(np.uint32))
+    )
+    u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
+    rays = np.c_[(u.ravel() - camera.cx) / camera.fx, (v.ravel() - camera.cy) / camera.fy, np.ones(u.size)]
+    dirs = rays @ T_world_cam[:3, :3].T
+    norms = np.linalg.norm(dirs, axis=1, keepdims=True)
+    origin = np.broadcast_to(T_world_cam[:3, 3], dirs.shape)
+    hits = scene.cast_rays(o3d.core.Tensor(np.c_[origin, dirs / norms].astype(np.float32)))
+    return (hits["t_hit"].numpy() / norms[:, 0]).reshape(camera.height, camera.width)
+
+
+@pytest.fixture(scope="module")
+def gt_scene(quick_room: Path, gt_slam_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("scene")
+    calibration = load_calibration(quick_room / "ground_truth" / "calib.yaml")
+    build_scene(quick_room / "session.mcap", calibration, gt_slam_dir, out)
+    return out
+
+
+def test_keyframe_poses_follow_the_true_camera_trajectory(gt_scene: Path, quick_room: Path) -> None:
+    scene = load_scene(gt_scene)
+    truth = read_tum(quick_room / "ground_truth" / "trajectory.tum")
+    assert len(scene.keyframes) == 7  # frames over 0..3 s, one keyframe per 0.5 s
+    assert [k.split for k in scene.keyframes].count("test") == 0  # fewer than 8 keyframes
+    for keyframe in scene.keyframes:
+        np.testing.assert_allclose(keyframe.T_world_cam, truth.interpolate(keyframe.t_ns), atol=1e-6)
+
+
+def test_lidar_depth_agrees_with_ground_truth_depth(gt_scene: Path, quick_room: Path) -> None:
+    scene = load_scene(gt_scene)
+    sigma = 0.015  # the simulator's default range noise
+    errors = []
+    for keyframe in scene.keyframes:
+        depth = scene.depth(keyframe)
+        truth = ground_truth_depth(
+            quick_room / "ground_truth" / "mesh.ply", scene.camera, keyframe.T_world_cam
+        )
+        valid = depth > 0
+        assert valid.mean() > 0.1
+        errors.append(np.abs(depth[valid] - truth[valid]))
+    errors = np.concatenate(errors)
+    assert np.median(errors) < 1.5 * sigma
+    assert np.mean(errors > 0.10) < 0.01  # occlusion leaks handled
+
+
+def test_normal_prior_faces_the_camera(gt_scene: Path) -> None:
+    scene = load_scene(gt_scene)
+    normals = scene.normals(scene.keyframes[0])
+    hit = np.linalg.norm(normals, axis=-1) > 0
+    assert hit.mean() > 0.95
+    np.testing.assert_allclose(np.linalg.norm(normals[hit], axis=-1), 1.0, atol=1e-4)
+    camera = scene.camera
+    u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
+    rays = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones(u.shape)], axis=-1)
+    assert (np.einsum("ij,ij->i", normals[hit], rays[hit]) < 0).all()  # every visible face looks back
+
+
+def test_images_are_undistorted(gt_scene: Path) -> None:
+    scene = load_scene(gt_scene)
+    assert scene.camera.model == "pinhole" and not scene.camera.dist.any()
+    image = scene.image(scene.keyframes[0])
+    assert image.shape == (scene.camera.height, scene.camera.width, 3) and image.std() > 10
+
+
+def test_calibration_of_another_image_size_is_refused(
+    quick_room: Path, gt_slam_dir: Path, tmp_path: Path
+) -> None:
+    calibration = load_calibration(quick_room / "ground_truth" / "calib.yaml")
+    camera = calibration.camera
+    wrong = Calibration(
+        CameraModel(
+            camera.model, camera.width * 2, camera.height * 2, camera.K * [[2], [2], [1]], camera.dist
+        ),
+        calibration.T_cam_lidar,
+        calibration.time_offset_s,
+    )
+    with pytest.raises(InputError, match="calibration's camera is"):
+        build_scene(quick_room / "session.mcap", wrong, gt_slam_dir, tmp_path / "scene")
+
+
+def test_trajectory_that_misses_the_camera_times_is_refused(
+    quick_room: Path, gt_slam_dir: Path, tmp_path: Path
+) -> None:
+    truth = read_tum(gt_slam_dir / "trajectory.tum")
+    shifted = type(truth).from_poses(truth.t_ns + 3_600_000_000_000, truth.poses)
+    slam = tmp_path / "slam"
+    slam.mkdir()
+    (slam / "mesh.ply").write_bytes((gt_slam_dir / "mesh.ply").read_bytes())
+    write_tum(shifted, slam / "trajectory.tum")
+    calibration = load_calibration(quick_room / "ground_truth" / "calib.yaml")
+    with pytest.raises(InputError, match="covers none of the camera frames"):
+        build_scene(quick_room / "session.mcap", calibration, slam, tmp_path / "scene")
+
+
+def test_load_scene_errors(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="not a scene folder"):
+        load_scene(tmp_path)
+    (tmp_path / "scene.json").write_text("{not json")
+    with pytest.raises(InputError, match="not valid JSON"):
+        load_scene(tmp_path)
