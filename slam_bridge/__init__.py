@@ -1,25 +1,37 @@
 """slam_bridge: mesh-SLAM imports (ImMesh and others), the fallback mapper, the keyframe scene builder.
 
-Every import writes the same SLAM folder (:mod:`slam_bridge.slam_dir`): ``mesh.ply`` (binary PLY,
-world frame) and ``trajectory.tum`` (``T_world_lidar``).
+Every import and the mapper write the same SLAM folder (:mod:`slam_bridge.slam_dir`):
+``mesh.ply`` (binary PLY, world frame) and ``trajectory.tum`` (``T_world_lidar``). The scene
+builder turns a session + SLAM folder into the keyframe scene folder (:mod:`slam_bridge.scene`).
 """
 
 from slam_bridge.depth_image import lidar_depth_image, remove_occluded, zbuffer_depth
+from slam_bridge.fallback_mapper import MapperConfig, MapperResult, run_mapper
 from slam_bridge.generic import import_generic
 from slam_bridge.immesh import T_LC, import_immesh, read_immesh_log
 from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
+from slam_bridge.scene import Keyframe, Scene, load_scene
+from slam_bridge.scene_builder import PrepareConfig, build_scene
 from slam_bridge.slam_dir import load_slam_dir, write_slam_dir
 
 __all__ = [
     "T_LC",
     "CleanupReport",
+    "Keyframe",
+    "MapperConfig",
+    "MapperResult",
+    "PrepareConfig",
+    "Scene",
+    "build_scene",
     "clean_mesh",
     "import_generic",
     "import_immesh",
     "lidar_depth_image",
+    "load_scene",
     "load_slam_dir",
     "read_immesh_log",
     "remove_occluded",
+    "run_mapper",
     "write_slam_dir",
     "zbuffer_depth",
 ]
