@@ -13,7 +13,7 @@ import typer
 from calib import cli as calib_cli
 from eval.mesh_eval_cli import eval_command
 from rig import trajectory_cli
-from rig.cli_support import run_app, version_callback
+from rig.cli_support import VERSION_OPTION, run_app
 from rig.sim import cli as sim_cli
 from slam_bridge import cli as slam_cli
 from slam_bridge.prepare_cli import prepare_command
@@ -40,13 +40,7 @@ app.add_typer(splat_cli.bench_app, name="bench")
 
 @app.callback()
 def _root(
-    version: bool = typer.Option(
-        False,
-        "--version",
-        callback=version_callback,
-        is_eager=True,
-        help="Print the version and exit.",
-    ),
+    version: bool = VERSION_OPTION,
 ) -> None:
     """LiDAR-guided Triangle Splatting toolkit (offline)."""
 

@@ -41,7 +41,7 @@ class GeometricMetrics:
 def sample_surface(mesh: trimesh.Trimesh, count: int = DEFAULT_SAMPLES, seed: int = 0) -> np.ndarray:
     """``(count, 3)`` points uniformly distributed by area over the mesh surface (seeded)."""
     if mesh.area <= 0:
-        raise InputError("mesh has zero surface area", field="face")
+        raise InputError("mesh has zero surface area", field="faces")
     points, _ = trimesh.sample.sample_surface(mesh, count, seed=seed)
     return np.asarray(points, dtype=np.float64)
 

@@ -15,6 +15,7 @@ import yaml
 
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.plain import plain_data
 from rig.transforms import check_rigid
 
 
@@ -35,21 +36,8 @@ class Calibration:
             "camera": self.camera.to_dict(),
             "T_cam_lidar": self.T_cam_lidar.tolist(),
             "time_offset_s": float(self.time_offset_s),
-            "quality": _plain(self.quality),
+            "quality": plain_data(self.quality),
         }
-
-
-def _plain(value: Any) -> Any:
-    """Convert numpy scalars/arrays inside nested containers to plain Python for YAML."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 def load_calibration(path: str | Path) -> Calibration:

@@ -10,7 +10,7 @@ from typing import Any
 
 import typer
 
-from rig.cli_support import console, emit_json, run_app, version_callback
+from rig.cli_support import VERSION_OPTION, console, emit_json, run_app
 from rig.errors import InputError
 
 app = typer.Typer(
@@ -24,13 +24,7 @@ app = typer.Typer(
 
 @app.callback()
 def _root(
-    version: bool = typer.Option(
-        False,
-        "--version",
-        callback=version_callback,
-        is_eager=True,
-        help="Print the version and exit.",
-    ),
+    version: bool = VERSION_OPTION,
 ) -> None:
     """On-robot tools: record time-stamped camera + LiDAR sessions and inspect them."""
 

@@ -12,11 +12,11 @@ from collections.abc import Callable
 from typing import Any
 
 import click
-import numpy as np
 import typer
 from rich.console import Console
 
 from rig.errors import InputError, OutOfRangeError
+from rig.plain import plain_data
 from rig.version import package_version
 
 #: Console for human-readable output and progress bars (stderr, so stdout stays machine-readable).
@@ -25,23 +25,9 @@ console = Console(stderr=True, soft_wrap=True)
 EXIT_BAD_INPUT = 2
 
 
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, np.generic):
-        return _jsonable(value.item())
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
-
-
 def emit_json(obj: dict[str, Any]) -> None:
     """Print ``obj`` as one JSON object on stdout (numpy values converted, NaN/Inf as null)."""
-    sys.stdout.write(json.dumps(_jsonable(obj)) + "\n")
+    sys.stdout.write(json.dumps(plain_data(obj, nonfinite_as_none=True)) + "\n")
     sys.stdout.flush()
 
 
@@ -77,3 +63,9 @@ def version_callback(value: bool) -> None:
     if value:
         typer.echo(f"lidar-ts {package_version()}")
         raise typer.Exit()
+
+
+#: The ``--version`` option both apps take (``version: bool = VERSION_OPTION``).
+VERSION_OPTION = typer.Option(
+    False, "--version", callback=version_callback, is_eager=True, help="Print the version and exit."
+)

@@ -25,14 +25,14 @@ def load_mesh(path: str | Path) -> trimesh.Trimesh:
     except Exception as exc:  # trimesh raises many exception types for corrupt files
         raise InputError(f"cannot read mesh ({type(exc).__name__}: {exc})", path=path) from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise InputError("mesh has no faces", path=path, field="face")
+        raise InputError("mesh has no faces", path=path, field="faces")
     faces = np.asarray(mesh.faces)
     if faces.min() < 0 or faces.max() >= len(mesh.vertices):
         raise InputError(
             f"faces index vertex {int(faces.max())} but the mesh has {len(mesh.vertices)} vertices",
             path=path,
-            field="face",
+            field="faces",
         )
     if not np.all(np.isfinite(mesh.vertices)):
-        raise InputError("mesh vertices hold NaN or Inf", path=path, field="vertex")
+        raise InputError("mesh vertices hold NaN or Inf", path=path, field="vertices")
     return mesh

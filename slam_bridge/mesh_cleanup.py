@@ -31,7 +31,7 @@ def check_faces(vertices: np.ndarray, faces: np.ndarray, path: str | None = None
         raise InputError(
             f"face {bad} indexes vertex {faces[bad].tolist()} but there are only {len(vertices)} vertices",
             path=path,
-            field="face",
+            field="faces",
         )
     if not np.all(np.isfinite(vertices)):
         raise InputError("vertex coordinates hold NaN or Inf", path=path, field="vertex")

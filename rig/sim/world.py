@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from rig.errors import InputError
+from rig.mesh_io import load_mesh
 from rig.sim.appearance import Appearance, MeshAppearance, ProceduralAppearance
 from rig.sim.raycast import Raycaster
 from rig.sim.scenes import Preset
@@ -43,13 +43,5 @@ def preset_world(preset: Preset, seed: int) -> World:
 def mesh_world(path: str | Path) -> World:
     """A user mesh (PLY/OBJ/GLB..., vertex colours or a texture); raises :class:`InputError` if
     the file cannot be read or holds no triangles."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("no such mesh file", path=path)
-    try:
-        loaded = trimesh.load(path, force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many types for unreadable files
-        raise InputError(f"cannot read mesh ({type(exc).__name__}: {exc})", path=path) from None
-    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise InputError("mesh has no faces; expected a triangle mesh", path=path, field="faces")
-    return World(path.name, loaded, MeshAppearance(loaded))
+    mesh = load_mesh(path)
+    return World(Path(path).name, mesh, MeshAppearance(mesh))
