@@ -18,6 +18,12 @@ def prepare_command(
     test_every: int = typer.Option(8, "--test-every", help="Hold out every n-th keyframe for testing."),
     image_topic: str | None = typer.Option(None, "--image-topic", help="Image topic, if several."),
     points_topic: str | None = typer.Option(None, "--points-topic", help="Point-cloud topic, if several."),
+    normals: Path | None = typer.Option(
+        None,
+        "--normals",
+        help="Folder of precomputed normal maps (<t_ns> or <frame index:06d> .npy/.png, camera frame) "
+        "to use instead of the SLAM mesh's normals.",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Keyframes with poses, undistorted images, LiDAR depth images and normal priors (see README)."""
@@ -27,7 +33,9 @@ def prepare_command(
     from slam_bridge.scene_builder import PrepareConfig, build_scene
 
     calibration = load_calibration(calib)
-    config = PrepareConfig(interval, test_every, image_topic=image_topic, points_topic=points_topic)
+    config = PrepareConfig(
+        interval, test_every, image_topic=image_topic, points_topic=points_topic, normals_dir=normals
+    )
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("building keyframes", total=None)
         keyframes = build_scene(

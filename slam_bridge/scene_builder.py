@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 
 from rig.calibration import Calibration
+from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.messages import Frame, Scan
 from rig.session import SessionReader
@@ -31,6 +32,8 @@ class PrepareConfig:
         test_every: every n-th keyframe is held out for testing.
         occlusion_window_px: window of the see-through test on LiDAR depth (0 disables it).
         image_topic, points_topic: choose topics when a session has several.
+        normals_dir: a folder of precomputed normal maps (e.g. from a monocular normal network) to
+            use instead of the SLAM mesh's normals: see :func:`read_normal_map`.
     """
 
     keyframe_interval_s: float = 0.5
@@ -38,6 +41,7 @@ class PrepareConfig:
     occlusion_window_px: int = 7
     image_topic: str | None = None
     points_topic: str | None = None
+    normals_dir: Path | None = None
 
 
 def camera_poses(trajectory: Trajectory, calibration: Calibration, t_cam_ns: np.ndarray) -> np.ndarray:
@@ -90,6 +94,44 @@ def normal_prior(
     normals[facing] *= -1
     normals[~hit] = 0
     return normals.reshape(*shape, 3).astype(np.float32)
+
+
+def read_normal_map(folder: Path, frame_index: int, t_ns: int, camera: CameraModel) -> np.ndarray:
+    """A precomputed normal map ``(H, W, 3)`` for one camera frame, in the original (distorted) image.
+
+    Looked up as ``<t_ns>.npy|.png`` (the frame's host stamp) or ``<frame_index:06d>.npy|.png``
+    (its position in the image topic). ``.npy``: float camera-frame normals (OpenCV axes); ``.png``:
+    8-bit RGB encoding ``(n + 1) / 2``. Zero vectors mean "no normal".
+    """
+    for stem in (str(t_ns), f"{frame_index:06d}"):
+        for suffix in (".npy", ".png"):
+            path = folder / f"{stem}{suffix}"
+            if not path.is_file():
+                continue
+            if suffix == ".npy":
+                normals = np.load(path).astype(np.float32)
+            else:
+                encoded = cv2.imread(str(path), cv2.IMREAD_COLOR)
+                if encoded is None:
+                    raise InputError("cannot read normal map", path=path)
+                normals = cv2.cvtColor(encoded, cv2.COLOR_BGR2RGB).astype(np.float32) / 127.5 - 1.0
+            if normals.shape != (camera.height, camera.width, 3):
+                raise InputError(
+                    f"normal map is {normals.shape}, expected ({camera.height}, {camera.width}, 3)", path=path
+                )
+            return normals
+    raise InputError(
+        f"no normal map for frame {frame_index} ({t_ns} ns): expected {t_ns}.npy or {frame_index:06d}.png",
+        path=folder,
+    )
+
+
+def undistort_normals(normals: np.ndarray, camera: CameraModel, target: CameraModel) -> np.ndarray:
+    """Resample a normal map ``(H, W, 3)`` into the undistorted camera (nearest pixel, so normals are
+    not blended across edges) and re-normalise; empty pixels stay zero."""
+    resampled = camera.undistort_image(normals, target, interpolation=cv2.INTER_NEAREST)
+    norms = np.linalg.norm(resampled, axis=-1, keepdims=True)
+    return np.divide(resampled, norms, out=np.zeros_like(resampled), where=norms > 1e-6).astype(np.float32)
 
 
 def build_scene(
@@ -160,10 +202,12 @@ def build_scene(
         else:
             depth = np.zeros((target.height, target.width), dtype=np.float32)
         np.save(out / "depth" / f"{name}.npy", depth)
-        np.save(
-            out / "normals" / f"{name}.npy",
-            normal_prior(raycaster, T_world_cam, rays_cam, (target.height, target.width)),
-        )
+        if config.normals_dir is not None:
+            given = read_normal_map(Path(config.normals_dir), int(index), int(frame_t[index]), camera)
+            normals = undistort_normals(given, camera, target)
+        else:
+            normals = normal_prior(raycaster, T_world_cam, rays_cam, (target.height, target.width))
+        np.save(out / "normals" / f"{name}.npy", normals)
         split = "test" if config.test_every and n % config.test_every == config.test_every - 1 else "train"
         keyframes.append(Keyframe(name, int(frame_t[index]), T_world_cam, split))
         if progress is not None:

@@ -116,3 +116,54 @@ def test_load_scene_errors(tmp_path: Path) -> None:
     (tmp_path / "scene.json").write_text("{not json")
     with pytest.raises(InputError, match="not valid JSON"):
         load_scene(tmp_path)
+
+
+def test_precomputed_normal_maps_replace_the_mesh_prior(
+    quick_room: Path, gt_slam_dir: Path, tmp_path: Path
+) -> None:
+    from rig.session import SessionReader
+
+    calibration = load_calibration(quick_room / "ground_truth" / "calib.yaml")
+    camera = calibration.camera
+    folder = tmp_path / "normals"
+    folder.mkdir()
+    frames = list(SessionReader(quick_room / "session.mcap").frames("/camera/image/compressed"))
+    up = np.zeros((camera.height, camera.width, 3), dtype=np.float32)
+    up[..., 1] = -1.0  # every pixel "faces up" (camera y points down)
+    for index, frame in enumerate(frames):
+        if index % 2:
+            np.save(folder / f"{frame.t_host}.npy", up)
+        else:
+            import cv2
+
+            cv2.imwrite(
+                str(folder / f"{index:06d}.png"),
+                cv2.cvtColor(((up + 1) * 127.5).astype(np.uint8), cv2.COLOR_RGB2BGR),
+            )
+    from slam_bridge.scene_builder import PrepareConfig
+
+    build_scene(
+        quick_room / "session.mcap",
+        calibration,
+        gt_slam_dir,
+        tmp_path / "scene",
+        PrepareConfig(normals_dir=folder),
+    )
+    scene = load_scene(tmp_path / "scene")
+    normals = scene.normals(scene.keyframes[1])
+    valid = np.linalg.norm(normals, axis=-1) > 0
+    assert valid.mean() > 0.8  # undistortion leaves only the border empty
+    np.testing.assert_allclose(
+        normals[valid], np.broadcast_to([0.0, -1.0, 0.0], normals[valid].shape), atol=0.01
+    )
+    (folder / f"{frames[0].t_host}.npy").unlink(missing_ok=True)
+    for p in folder.glob("000000.png"):
+        p.unlink()
+    with pytest.raises(InputError, match="no normal map for frame 0"):
+        build_scene(
+            quick_room / "session.mcap",
+            calibration,
+            gt_slam_dir,
+            tmp_path / "s2",
+            PrepareConfig(normals_dir=folder),
+        )
