@@ -10,6 +10,7 @@ from slam_bridge.fallback_mapper import MapperConfig, MapperResult, run_mapper
 from slam_bridge.generic import import_generic
 from slam_bridge.immesh import T_LC, import_immesh, read_immesh_log
 from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
+from slam_bridge.pin_slam import import_pin_slam
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from slam_bridge.scene_builder import PrepareConfig, build_scene
 from slam_bridge.slam_dir import load_slam_dir, write_slam_dir
@@ -26,6 +27,7 @@ __all__ = [
     "clean_mesh",
     "import_generic",
     "import_immesh",
+    "import_pin_slam",
     "lidar_depth_image",
     "load_scene",
     "load_slam_dir",

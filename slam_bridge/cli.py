@@ -15,7 +15,23 @@ app = typer.Typer(
     help="Import mesh-SLAM output (mesh + trajectory) into a SLAM folder.", no_args_is_help=True
 )
 
-IMPORT_FORMATS = ("immesh", "generic")
+IMPORT_FORMATS = ("immesh", "pin-slam", "generic")
+
+
+def detect_import_format(source: Path, explicit_files: bool = False) -> str:
+    """The import format of a mapper's output folder, when its files make it unambiguous."""
+    if explicit_files or source.is_file():
+        return "generic"
+    if not source.is_dir():
+        raise InputError("no such folder or file", path=source)
+    if (source / "rec_mesh.ply").is_file():
+        return "immesh"
+    if (source / "mesh").is_dir() and any(source.glob("*_poses_tum.txt")):
+        return "pin-slam"
+    raise InputError(
+        f"cannot tell which mapper wrote this folder; give --format ({', '.join(IMPORT_FORMATS)})",
+        path=source,
+    )
 
 
 @app.command("import")
@@ -24,11 +40,13 @@ def import_command(
         ..., help="The mapper's output folder (or, for generic, a folder or mesh file)."
     ),
     out: Path = typer.Option(..., "--out", help="SLAM folder to write: mesh.ply + trajectory.tum."),
-    fmt: str = typer.Option(
-        ...,
+    fmt: str | None = typer.Option(
+        None,
         "--format",
         help="immesh: SOURCE holds rec_mesh.ply and Log/kitti_log_voxelmap.txt (or the log at its root). "
-        "generic: one mesh and one trajectory file (TUM/KITTI/EuRoC/4x4) in SOURCE, or --mesh/--trajectory.",
+        "pin-slam: SOURCE holds mesh/*.ply and *_poses_tum.txt. "
+        "generic: one mesh and one trajectory file (TUM/KITTI/EuRoC/4x4) in SOURCE, or --mesh/--trajectory "
+        "(e.g. SLAMesh's PLY + KITTI poses with --rate). Detected from SOURCE's files when omitted.",
     ),
     mesh: Path | None = typer.Option(None, "--mesh", help="generic: the mesh file."),
     trajectory: Path | None = typer.Option(None, "--trajectory", help="generic: the trajectory file."),
@@ -37,10 +55,15 @@ def import_command(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Import a mapper's mesh and trajectory: clean the mesh and write the SLAM folder."""
+    fmt = fmt or detect_import_format(source, explicit_files=mesh is not None or trajectory is not None)
     if fmt == "immesh":
         from slam_bridge.immesh import import_immesh
 
         report = import_immesh(source, out)
+    elif fmt == "pin-slam":
+        from slam_bridge.pin_slam import import_pin_slam
+
+        report = import_pin_slam(source, out)
     elif fmt == "generic":
         from slam_bridge.generic import MESH_SUFFIXES, TRAJECTORY_SUFFIXES, find_single, import_generic
 

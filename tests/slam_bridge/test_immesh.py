@@ -94,3 +94,38 @@ def test_lts_slam_import_cli(tmp_path: Path) -> None:
         timeout=60,
     )
     assert bad.returncode == 2 and "unknown format 'nope'" in bad.stderr
+
+
+def test_pin_slam_folder_is_detected_and_imported(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    from rig.trajectory_io import write_tum
+
+    mesh, trajectory = known_scene()
+    (tmp_path / "mesh").mkdir()
+    trimesh.creation.icosphere().export(tmp_path / "mesh" / "mesh_frame_100.ply")
+    mesh.export(tmp_path / "mesh" / "mesh_frame_1200.ply")  # the latest frame's mesh is the map
+    write_tum(trajectory, tmp_path / "run_slam_poses_tum.txt")
+    write_tum(
+        type(trajectory).from_poses(trajectory.t_ns, trajectory.poses * 0 + np.eye(4)),
+        tmp_path / "run_odom_poses_tum.txt",
+    )
+    lts = Path(sys.executable).parent / "lts"
+    result = subprocess.run(
+        [lts, "slam", "import", tmp_path, "--out", tmp_path / "slam"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 0, result.stderr
+    imported_mesh, imported = load_slam_dir(tmp_path / "slam")
+    assert len(imported_mesh.faces) == 12
+    assert np.abs(imported.poses - trajectory.poses).max() < 1e-12  # the loop-closed poses, not odometry
+    unknown = subprocess.run(
+        [lts, "slam", "import", tmp_path / "mesh", "--out", tmp_path / "x"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert unknown.returncode == 2 and "give --format" in unknown.stderr
