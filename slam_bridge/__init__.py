@@ -7,6 +7,7 @@ builder turns a session + SLAM folder into the keyframe scene folder (:mod:`slam
 
 from slam_bridge.depth_image import lidar_depth_image, remove_occluded, zbuffer_depth
 from slam_bridge.fallback_mapper import MapperConfig, MapperResult, run_mapper
+from slam_bridge.fast_lio import import_fast_lio, mesh_from_points
 from slam_bridge.generic import import_generic
 from slam_bridge.immesh import T_LC, import_immesh, read_immesh_log
 from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
@@ -25,12 +26,14 @@ __all__ = [
     "Scene",
     "build_scene",
     "clean_mesh",
+    "import_fast_lio",
     "import_generic",
     "import_immesh",
     "import_pin_slam",
     "lidar_depth_image",
     "load_scene",
     "load_slam_dir",
+    "mesh_from_points",
     "read_immesh_log",
     "remove_occluded",
     "run_mapper",

@@ -15,7 +15,7 @@ app = typer.Typer(
     help="Import mesh-SLAM output (mesh + trajectory) into a SLAM folder.", no_args_is_help=True
 )
 
-IMPORT_FORMATS = ("immesh", "pin-slam", "generic")
+IMPORT_FORMATS = ("immesh", "pin-slam", "fast-lio", "generic")
 
 
 def detect_import_format(source: Path, explicit_files: bool = False) -> str:
@@ -28,6 +28,8 @@ def detect_import_format(source: Path, explicit_files: bool = False) -> str:
         return "immesh"
     if (source / "mesh").is_dir() and any(source.glob("*_poses_tum.txt")):
         return "pin-slam"
+    if (source / "scans.pcd").is_file() or (source / "PCD" / "scans.pcd").is_file():
+        return "fast-lio"
     raise InputError(
         f"cannot tell which mapper wrote this folder; give --format ({', '.join(IMPORT_FORMATS)})",
         path=source,
@@ -45,17 +47,24 @@ def import_command(
         "--format",
         help="immesh: SOURCE holds rec_mesh.ply and Log/kitti_log_voxelmap.txt (or the log at its root). "
         "pin-slam: SOURCE holds mesh/*.ply and *_poses_tum.txt. "
+        "fast-lio: SOURCE holds scans.pcd (or PCD/scans.pcd) and one bag with the odometry topic, or give "
+        "--trajectory; the mesh is made from the map by Poisson reconstruction. "
         "generic: one mesh and one trajectory file (TUM/KITTI/EuRoC/4x4) in SOURCE, or --mesh/--trajectory "
         "(e.g. SLAMesh's PLY + KITTI poses with --rate). Detected from SOURCE's files when omitted.",
     ),
     mesh: Path | None = typer.Option(None, "--mesh", help="generic: the mesh file."),
-    trajectory: Path | None = typer.Option(None, "--trajectory", help="generic: the trajectory file."),
+    trajectory: Path | None = typer.Option(
+        None, "--trajectory", help="generic / fast-lio: the trajectory file (TUM/KITTI/EuRoC/4x4)."
+    ),
+    odometry_topic: str = typer.Option(
+        "/Odometry", "--odometry-topic", help="fast-lio: odometry topic in the bag."
+    ),
     times: Path | None = typer.Option(None, "--times", help="generic KITTI/4x4 trajectory: times file."),
     rate: float | None = typer.Option(None, "--rate", help="generic KITTI/4x4 trajectory without times: Hz."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Import a mapper's mesh and trajectory: clean the mesh and write the SLAM folder."""
-    fmt = fmt or detect_import_format(source, explicit_files=mesh is not None or trajectory is not None)
+    fmt = fmt or detect_import_format(source, explicit_files=mesh is not None)
     if fmt == "immesh":
         from slam_bridge.immesh import import_immesh
 
@@ -64,6 +73,10 @@ def import_command(
         from slam_bridge.pin_slam import import_pin_slam
 
         report = import_pin_slam(source, out)
+    elif fmt == "fast-lio":
+        from slam_bridge.fast_lio import import_fast_lio
+
+        report = import_fast_lio(source, out, trajectory, odometry_topic)
     elif fmt == "generic":
         from slam_bridge.generic import MESH_SUFFIXES, TRAJECTORY_SUFFIXES, find_single, import_generic
 
