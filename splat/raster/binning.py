@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import ModuleType
 
 import torch
 from torch import Tensor
@@ -35,9 +36,16 @@ class TileBins:
     tiles_y: int
 
 
-def bin_triangles(bounds: Tensor, width: int, height: int) -> TileBins:
-    """Bin triangles (already in depth order) by the tiles their pixel boxes ``(K, 4)`` touch."""
+def bin_triangles(bounds: Tensor, width: int, height: int, ext: ModuleType | None = None) -> TileBins:
+    """Bin triangles (already in depth order) by the tiles their pixel boxes ``(K, 4)`` touch.
+
+    With ``ext`` (the CPU extension) a one-pass counting sort in C++ builds the same bins; the
+    PyTorch ops below are its specification and run on any device.
+    """
     tiles_x, tiles_y = -(-width // TILE), -(-height // TILE)
+    if ext is not None:
+        tile_offsets, tile_slots, slot_tri, tri_offsets = ext.bin_triangles(bounds, width, height)
+        return TileBins(tile_offsets, tile_slots, slot_tri, tri_offsets, tiles_x, tiles_y)
     device = bounds.device
     b = bounds.long()
     t0 = b[:, :2] // TILE

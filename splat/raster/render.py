@@ -149,7 +149,7 @@ def render(
     else:
         ext = cpu_extension() if chosen == "cpu" else cuda_extension()
         tris = project_triangles_kernel(*geometry, ext)
-        bins = bin_triangles(tris.bounds, intr.width, intr.height)
+        bins = bin_triangles(tris.bounds, intr.width, intr.height, ext if chosen == "cpu" else None)
         images = rasterize_kernel(tris.params, tris.bounds, bins, intr.width, intr.height, ext)
 
     # -1 (no triangle) indexes the appended -1.

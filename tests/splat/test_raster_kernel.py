@@ -8,6 +8,9 @@ from raster_cases import CAMERA, CASES, INPUTS, OUTPUTS, gradients, rel_l2, rend
 
 from rig.errors import InputError
 from splat.raster import render
+from splat.raster.binning import bin_triangles
+from splat.raster.extension import cpu_extension
+from splat.raster.project import Intrinsics, project_triangles
 from splat.raster.scenes import pinhole, random_scene
 
 TOLERANCE = {torch.float64: 1e-5, torch.float32: 1e-3}
@@ -153,3 +156,15 @@ def test_pose_gradient_matches_the_reference() -> None:
         grads.append(T.grad)
     assert float(grads[0].norm()) > 0
     assert rel_l2(*grads) < 1e-5
+
+
+def test_cpu_binning_matches_the_pytorch_binning() -> None:
+    camera = pinhole(100, 70)  # not a multiple of the tile size
+    scene = random_scene(2000, camera, size_px=(1.0, 60.0), seed=4)
+    intr = Intrinsics(camera.fx, camera.fy, camera.cx, camera.cy, camera.width, camera.height)
+    tris = project_triangles(*scene.tensors(), torch.eye(4), intr, 0.02)
+    ours = bin_triangles(tris.bounds, camera.width, camera.height, cpu_extension())
+    spec = bin_triangles(tris.bounds, camera.width, camera.height)
+    for name in ("tile_offsets", "tile_slots", "slot_tri", "tri_offsets"):
+        assert torch.equal(getattr(ours, name), getattr(spec, name)), name
+    assert len(spec.tile_slots) > len(tris.bounds)

@@ -291,11 +291,63 @@ torch::Tensor backward(const torch::Tensor& params, const torch::Tensor& bounds,
   return d_params;
 }
 
+// Tile binning (the CPU twin of splat/raster/binning.py): a counting sort by tile that visits
+// triangles in depth order, so each tile's entries come out front to back. Serial: O(slots).
+std::vector<torch::Tensor> bin_triangles(const torch::Tensor& bounds, int64_t width,
+                                         int64_t height) {
+  TORCH_CHECK(bounds.device().is_cpu() && bounds.scalar_type() == torch::kInt32 &&
+                  bounds.is_contiguous() && bounds.dim() == 2 && bounds.size(1) == 4,
+              "bounds must be a contiguous CPU (K, 4) int32 tensor");
+  const int64_t n_tri = bounds.size(0);
+  const int tiles_x = static_cast<int>((width + kTile - 1) / kTile);
+  const int n_tiles = tiles_x * static_cast<int>((height + kTile - 1) / kTile);
+  const int32_t* bd = bounds.data_ptr<int32_t>();
+  auto i64 = torch::TensorOptions().dtype(torch::kInt64);
+  auto tri_offsets = torch::empty({n_tri + 1}, i64);
+  auto tile_offsets = torch::zeros({n_tiles + 1}, i64);
+  int64_t* to = tri_offsets.data_ptr<int64_t>();
+  int64_t* tile_count = tile_offsets.data_ptr<int64_t>() + 1;
+  // Calls fn(tile) for the tiles of triangle k's box, in raster order.
+  auto each_tile = [&](int64_t k, auto&& fn) {
+    const int32_t* b = bd + 4 * k;
+    if (b[2] < b[0] || b[3] < b[1]) return;
+    for (int ty = b[1] / kTile; ty <= b[3] / kTile; ++ty) {
+      for (int tx = b[0] / kTile; tx <= b[2] / kTile; ++tx) fn(ty * tiles_x + tx);
+    }
+  };
+  to[0] = 0;
+  for (int64_t k = 0; k < n_tri; ++k) {
+    int64_t count = 0;
+    each_tile(k, [&](int t) {
+      ++count;
+      ++tile_count[t];
+    });
+    to[k + 1] = to[k] + count;
+  }
+  int64_t* tile_off = tile_offsets.data_ptr<int64_t>();
+  for (int t = 0; t < n_tiles; ++t) tile_off[t + 1] += tile_off[t];
+  const int64_t n_slots = to[n_tri];
+  auto i32 = torch::TensorOptions().dtype(torch::kInt32);
+  auto tile_slots = torch::empty({n_slots}, i32), slot_tri = torch::empty({n_slots}, i32);
+  int32_t* ts = tile_slots.data_ptr<int32_t>();
+  int32_t* st = slot_tri.data_ptr<int32_t>();
+  std::vector<int64_t> cursor(tile_off, tile_off + n_tiles);
+  for (int64_t k = 0; k < n_tri; ++k) {
+    int64_t slot = to[k];
+    each_tile(k, [&](int t) {
+      st[slot] = static_cast<int32_t>(k);
+      ts[cursor[t]++] = static_cast<int32_t>(slot++);
+    });
+  }
+  return {tile_offsets, tile_slots, slot_tri, tri_offsets};
+}
+
 }  // namespace
 
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("forward", &forward, "triangle rasteriser forward (CPU)");
   m.def("backward", &backward, "triangle rasteriser backward (CPU)");
+  m.def("bin_triangles", &bin_triangles, "tile binning by counting sort (CPU)");
   m.def("setup_cull", &lts_cpu::setup_cull, "visibility and depth key per face (CPU)");
   m.def("setup_forward", &lts_cpu::setup_forward, "per-triangle kernel parameters (CPU)");
   m.def("setup_backward", &lts_cpu::setup_backward, "backward of setup_forward (CPU)");
