@@ -14,8 +14,10 @@ from types import ModuleType
 CSRC = Path(__file__).parent / "csrc"
 HEADERS = [CSRC / name for name in ("triangle_math.h", "triangle_setup.h", "bins.h", "cpu_ops.h")]
 # -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
-# kernel's skip/stop decisions match the reference exactly.
-CPU_FLAGS = ["-O3", "-march=native", "-ffp-contract=off"]
+# kernel's skip/stop decisions match the reference exactly. -fopenmp: at::parallel_for is inline
+# and runs serially in code compiled without it (libgomp is the one PyTorch already loaded).
+CPU_FLAGS = ["-O3", "-march=native", "-ffp-contract=off", "-fopenmp"]
+LINK_FLAGS = ["-fopenmp"]
 CUDA_FLAGS = ["-O3", "--fmad=false"]
 
 
@@ -65,7 +67,7 @@ def _load(target: str, sources: list[Path], cuda: bool) -> ModuleType:
 
     from rig.cli_support import console
 
-    flags = CPU_FLAGS + (CUDA_FLAGS if cuda else [])
+    flags = CPU_FLAGS + LINK_FLAGS + (CUDA_FLAGS if cuda else [])
     digest = hashlib.sha256()
     for part in [*HEADERS, *sources]:
         digest.update(part.read_bytes())
@@ -86,6 +88,7 @@ def _load(target: str, sources: list[Path], cuda: bool) -> ModuleType:
             name=name,
             sources=[str(s) for s in sources],
             extra_cflags=CPU_FLAGS,
+            extra_ldflags=LINK_FLAGS,
             extra_cuda_cflags=CUDA_FLAGS if cuda else None,
             extra_include_paths=[str(CSRC)],
             build_directory=str(build_dir),
