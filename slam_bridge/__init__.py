@@ -15,6 +15,7 @@ from slam_bridge.pin_slam import import_pin_slam
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from slam_bridge.scene_builder import PrepareConfig, build_scene
 from slam_bridge.slam_dir import load_slam_dir, write_slam_dir
+from slam_bridge.sparse_points import SparseResult, triangulate_keyframes
 
 __all__ = [
     "T_LC",
@@ -24,6 +25,7 @@ __all__ = [
     "MapperResult",
     "PrepareConfig",
     "Scene",
+    "SparseResult",
     "build_scene",
     "clean_mesh",
     "import_fast_lio",
@@ -37,6 +39,7 @@ __all__ = [
     "read_immesh_log",
     "remove_occluded",
     "run_mapper",
+    "triangulate_keyframes",
     "write_slam_dir",
     "zbuffer_depth",
 ]

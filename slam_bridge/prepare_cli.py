@@ -24,6 +24,15 @@ def prepare_command(
         help="Folder of precomputed normal maps (<t_ns> or <frame index:06d> .npy/.png, camera frame) "
         "to use instead of the SLAM mesh's normals.",
     ),
+    sparse_points: bool = typer.Option(
+        False, "--sparse-points", help="Triangulate COLMAP sparse points (needed by the TS+ baseline)."
+    ),
+    refine_poses: bool = typer.Option(
+        False,
+        "--refine-poses",
+        help="Bundle-adjust keyframe poses with COLMAP (intrinsics fixed). On the virtual rig's room it "
+        "moved poses by up to 47 cm and made points worse: use only when the LiDAR trajectory is poor.",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Keyframes with poses, undistorted images, LiDAR depth images and normal priors (see README)."""
@@ -34,7 +43,13 @@ def prepare_command(
 
     calibration = load_calibration(calib)
     config = PrepareConfig(
-        interval, test_every, image_topic=image_topic, points_topic=points_topic, normals_dir=normals
+        interval,
+        test_every,
+        image_topic=image_topic,
+        points_topic=points_topic,
+        normals_dir=normals,
+        sparse_points=sparse_points,
+        refine_poses=refine_poses,
     )
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("building keyframes", total=None)

@@ -7,6 +7,7 @@ Layout of ``SCENE_DIR``::
     depth/NAME.npy      LiDAR depth (H, W) float32 metres along camera z, 0 = no return
     normals/NAME.npy    normal prior (H, W, 3) float32, camera frame, facing the camera, 0 = none
     mesh.ply            warm-start mesh (world frame), copied from the SLAM folder
+    sparse_points.ply   COLMAP points triangulated from the keyframes (optional, ``--sparse-points``)
 
 World = the SLAM map frame; ``T_world_cam`` maps camera points to the world.
 """
@@ -25,6 +26,7 @@ from rig.camera import CameraModel
 from rig.errors import InputError
 
 SCENE_FILE = "scene.json"
+SPARSE_POINTS_FILE = "sparse_points.ply"
 Split = Literal["train", "test"]
 
 
@@ -46,6 +48,7 @@ class Scene:
     camera: CameraModel
     keyframes: list[Keyframe]
     mesh_path: Path
+    sparse_points_path: Path | None = None
 
     def split(self, which: Split) -> list[Keyframe]:
         return [k for k in self.keyframes if k.split == which]
@@ -70,6 +73,21 @@ class Scene:
             self.root / "normals" / f"{keyframe.name}.npy", (self.camera.height, self.camera.width, 3)
         )
 
+    def sparse_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """COLMAP sparse points ``(N, 3)`` and colours ``(N, 3)`` uint8 RGB; an error naming the fix
+        when the scene was prepared without them."""
+        if self.sparse_points_path is None:
+            raise InputError(
+                "this scene has no sparse points; prepare it with lts prepare --sparse-points",
+                path=self.root / SCENE_FILE,
+                field="sparse_points",
+            )
+        import trimesh
+
+        cloud = trimesh.load(self.sparse_points_path, process=False)
+        colors = np.asarray(cloud.colors)[:, :3] if len(getattr(cloud, "colors", [])) else np.zeros((0, 3))
+        return np.asarray(cloud.vertices, dtype=np.float64), colors.astype(np.uint8)
+
 
 def _load_array(path: Path, shape: tuple[int, ...]) -> np.ndarray:
     try:
@@ -81,11 +99,14 @@ def _load_array(path: Path, shape: tuple[int, ...]) -> np.ndarray:
     return array.astype(np.float32, copy=False)
 
 
-def write_scene_index(root: Path, camera: CameraModel, keyframes: list[Keyframe], source: dict) -> None:
+def write_scene_index(
+    root: Path, camera: CameraModel, keyframes: list[Keyframe], source: dict, sparse_points: str | None = None
+) -> None:
     """Write ``scene.json`` (atomically) for the keyframes whose files are already written."""
     data = {
         "camera": camera.to_dict(),
         "mesh": "mesh.ply",
+        "sparse_points": sparse_points,
         "keyframes": [
             {
                 "name": k.name,
@@ -125,4 +146,7 @@ def load_scene(root: str | Path) -> Scene:
         keyframes.append(keyframe)
     if not keyframes:
         raise InputError("no keyframes", path=index, field="keyframes")
-    return Scene(root, camera, keyframes, root / data.get("mesh", "mesh.ply"))
+    sparse = data.get("sparse_points")
+    return Scene(
+        root, camera, keyframes, root / data.get("mesh", "mesh.ply"), root / sparse if sparse else None
+    )

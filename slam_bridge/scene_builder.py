@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
 import numpy as np
+import trimesh
 
 from rig.calibration import Calibration
 from rig.camera import CameraModel
@@ -18,9 +19,10 @@ from rig.session import SessionReader
 from rig.trajectory import Trajectory
 from rig.transforms import invert
 from slam_bridge.depth_image import remove_occluded, zbuffer_depth
-from slam_bridge.scene import Keyframe, write_scene_index
+from slam_bridge.scene import SPARSE_POINTS_FILE, Keyframe, write_scene_index
 from slam_bridge.session_streams import find_topics
 from slam_bridge.slam_dir import MESH_FILE, load_slam_dir
+from slam_bridge.sparse_points import triangulate_keyframes
 
 
 @dataclass(frozen=True)
@@ -34,6 +36,9 @@ class PrepareConfig:
         image_topic, points_topic: choose topics when a session has several.
         normals_dir: a folder of precomputed normal maps (e.g. from a monocular normal network) to
             use instead of the SLAM mesh's normals: see :func:`read_normal_map`.
+        sparse_points: triangulate COLMAP sparse points from the keyframes (for the TS+ baseline).
+        refine_poses: bundle-adjust the keyframe poses with COLMAP (intrinsics fixed); implies
+            ``sparse_points``.
     """
 
     keyframe_interval_s: float = 0.5
@@ -42,6 +47,8 @@ class PrepareConfig:
     image_topic: str | None = None
     points_topic: str | None = None
     normals_dir: Path | None = None
+    sparse_points: bool = False
+    refine_poses: bool = False
 
 
 def camera_poses(trajectory: Trajectory, calibration: Calibration, t_cam_ns: np.ndarray) -> np.ndarray:
@@ -213,14 +220,18 @@ def build_scene(
         if progress is not None:
             progress(n + 1, len(chosen))
     shutil.copyfile(Path(slam_dir) / MESH_FILE, out / "mesh.ply")
-    write_scene_index(
-        out,
-        target,
-        keyframes,
-        {
-            "session": str(session),
-            "slam_dir": str(slam_dir),
-            "keyframe_interval_s": config.keyframe_interval_s,
-        },
-    )
+    sparse_file = None
+    if config.sparse_points or config.refine_poses:
+        sparse = triangulate_keyframes(out / "images", out / "colmap", target, keyframes, config.refine_poses)
+        trimesh.PointCloud(sparse.points, colors=sparse.colors).export(out / SPARSE_POINTS_FILE)
+        sparse_file = SPARSE_POINTS_FILE
+        if config.refine_poses:
+            keyframes = [replace(k, T_world_cam=sparse.poses[k.name]) for k in keyframes]
+    source = {
+        "session": str(session),
+        "slam_dir": str(slam_dir),
+        "keyframe_interval_s": config.keyframe_interval_s,
+        "refined_poses": config.refine_poses,
+    }
+    write_scene_index(out, target, keyframes, source, sparse_points=sparse_file)
     return keyframes

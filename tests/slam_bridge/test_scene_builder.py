@@ -167,3 +167,30 @@ def test_precomputed_normal_maps_replace_the_mesh_prior(
             tmp_path / "s2",
             PrepareConfig(normals_dir=folder),
         )
+
+
+def test_sparse_points_lie_on_the_true_surface(quick_room: Path, gt_slam_dir: Path, tmp_path: Path) -> None:
+    from slam_bridge.scene_builder import PrepareConfig
+
+    calibration = load_calibration(quick_room / "ground_truth" / "calib.yaml")
+    build_scene(
+        quick_room / "session.mcap",
+        calibration,
+        gt_slam_dir,
+        tmp_path / "scene",
+        PrepareConfig(sparse_points=True),
+    )
+    points, colors = load_scene(tmp_path / "scene").sparse_points()
+    assert len(points) > 30 and colors.shape == (len(points), 3)  # 7 keyframes of 160x120
+    mesh = trimesh.load(quick_room / "ground_truth" / "mesh.ply", process=False)
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.faces.astype(np.uint32))
+    )
+    distance = scene.compute_distance(o3d.core.Tensor(points.astype(np.float32))).numpy()
+    assert np.median(distance) < 0.15  # 160x120 and short baselines; 2.7 cm on the 20 s room at 320x240
+
+
+def test_scene_without_sparse_points_says_how_to_get_them(gt_scene: Path) -> None:
+    with pytest.raises(InputError, match="--sparse-points"):
+        load_scene(gt_scene).sparse_points()
