@@ -15,6 +15,12 @@ def prepare_command(
     slam: Path = typer.Option(..., "--slam", help="SLAM folder (mesh.ply + trajectory.tum), from lts slam."),
     out: Path = typer.Option(..., "--out", help="Scene folder to write."),
     interval: float = typer.Option(0.5, "--keyframe-interval", help="Seconds between keyframes."),
+    keyframe_motion: tuple[float, float] | None = typer.Option(
+        None,
+        "--keyframe-motion",
+        metavar="M DEG",
+        help="Choose keyframes by motion instead of time: a new one after M metres or DEG degrees.",
+    ),
     test_every: int = typer.Option(8, "--test-every", help="Hold out every n-th keyframe for testing."),
     image_topic: str | None = typer.Option(None, "--image-topic", help="Image topic, if several."),
     points_topic: str | None = typer.Option(None, "--points-topic", help="Point-cloud topic, if several."),
@@ -44,6 +50,7 @@ def prepare_command(
     calibration = load_calibration(calib)
     config = PrepareConfig(
         interval,
+        keyframe_motion,
         test_every,
         image_topic=image_topic,
         points_topic=points_topic,

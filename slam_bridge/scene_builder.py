@@ -32,6 +32,7 @@ class PrepareConfig:
 
     Attributes:
         keyframe_interval_s: one keyframe per this many seconds of camera frames (paper: ~0.5 s).
+        keyframe_min_motion: ``(metres, degrees)``: choose keyframes by motion instead of time.
         test_every: every n-th keyframe is held out for testing.
         occlusion_window_px: window of the see-through test on LiDAR depth (0 disables it).
         image_topic, points_topic: choose topics when a session has several.
@@ -43,6 +44,7 @@ class PrepareConfig:
     """
 
     keyframe_interval_s: float = 0.5
+    keyframe_min_motion: tuple[float, float] | None = None
     test_every: int = 8
     occlusion_window_px: int = 7
     image_topic: str | None = None
@@ -60,9 +62,15 @@ def camera_poses(trajectory: Trajectory, calibration: Calibration, t_cam_ns: np.
 
 
 def select_keyframes(
-    frame_t_ns: np.ndarray, trajectory: Trajectory, calibration: Calibration, interval_s: float
+    frame_t_ns: np.ndarray,
+    trajectory: Trajectory,
+    calibration: Calibration,
+    interval_s: float,
+    min_motion: tuple[float, float] | None = None,
 ) -> np.ndarray:
-    """Indices of camera frames to keep: one per ``interval_s``, only where the trajectory covers them."""
+    """Indices of camera frames to keep, only where the trajectory covers them: one per
+    ``interval_s``, or — with ``min_motion = (metres, degrees)`` — the next frame whose camera has
+    moved or turned at least that much since the last keyframe."""
     t_lidar = frame_t_ns - round(calibration.time_offset_s * 1e9)
     covered = np.flatnonzero(trajectory.covers(t_lidar))
     if covered.size == 0:
@@ -70,11 +78,18 @@ def select_keyframes(
             "the trajectory covers none of the camera frames (check time_offset_s and the SLAM folder)",
             field="trajectory",
         )
-    chosen = [covered[0]]
-    for i in covered[1:]:
-        if (frame_t_ns[i] - frame_t_ns[chosen[-1]]) * 1e-9 >= interval_s - 1e-6:
-            chosen.append(i)
-    return np.asarray(chosen)
+    poses = camera_poses(trajectory, calibration, frame_t_ns[covered]) if min_motion else None
+    chosen = [0]
+    for j in range(1, len(covered)):
+        if poses is None:
+            keep = (frame_t_ns[covered[j]] - frame_t_ns[covered[chosen[-1]]]) * 1e-9 >= interval_s - 1e-6
+        else:
+            relative = invert(poses[chosen[-1]]) @ poses[j]
+            angle = np.degrees(np.arccos(np.clip((np.trace(relative[:3, :3]) - 1) / 2, -1.0, 1.0)))
+            keep = np.linalg.norm(relative[:3, 3]) >= min_motion[0] or angle >= min_motion[1]
+        if keep:
+            chosen.append(j)
+    return covered[np.asarray(chosen)]
 
 
 #: Point times are rounded to this step (ns) before poses are interpolated: 0.1 ms moves a point by
@@ -179,7 +194,9 @@ def build_scene(
             field="camera.width/height",
         )
     frame_t = np.array([f.t_host for f in frames], dtype=np.int64)
-    chosen = select_keyframes(frame_t, trajectory, calibration, config.keyframe_interval_s)
+    chosen = select_keyframes(
+        frame_t, trajectory, calibration, config.keyframe_interval_s, config.keyframe_min_motion
+    )
     poses = camera_poses(trajectory, calibration, frame_t[chosen])
     scans = list(reader.scans(topics.points))
     offset_ns = round(calibration.time_offset_s * 1e9)

@@ -194,3 +194,25 @@ def test_sparse_points_lie_on_the_true_surface(quick_room: Path, gt_slam_dir: Pa
 def test_scene_without_sparse_points_says_how_to_get_them(gt_scene: Path) -> None:
     with pytest.raises(InputError, match="--sparse-points"):
         load_scene(gt_scene).sparse_points()
+
+
+def test_keyframes_by_motion(quick_room: Path, gt_slam_dir: Path, tmp_path: Path) -> None:
+    import json
+    import subprocess
+    import sys
+
+    lts = Path(sys.executable).parent / "lts"
+    calib = quick_room / "ground_truth" / "calib.yaml"
+    args = [lts, "prepare", quick_room / "session.mcap", "--calib", calib, "--slam", gt_slam_dir, "--json"]
+    by_motion = subprocess.run(
+        [*args, "--out", tmp_path / "m", "--keyframe-motion", "0.2", "10"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert by_motion.returncode == 0, by_motion.stderr
+    scene = load_scene(tmp_path / "m")
+    centres = np.array([k.T_world_cam[:3, 3] for k in scene.keyframes])
+    steps = np.linalg.norm(np.diff(centres, axis=0), axis=1)
+    assert json.loads(by_motion.stdout)["keyframes"] == len(scene.keyframes) >= 2
+    assert (steps >= 0.2).sum() >= len(steps) - 1  # all but turn-triggered ones moved 20 cm
