@@ -60,7 +60,6 @@ def _rasterize_tiles(params: Tensor, bins: TileBins, tiles: Tensor, width: int, 
     included = contributes & (t_after >= TRANSMITTANCE_MIN)
     w = torch.where(included, alpha * t_before, 0.0)
 
-    colour = (ell[..., None] * prm[..., COLOR : COLOR + 9].unflatten(-1, (3, 3))).sum(dim=-2)
     inv_depth = (ell * prm[..., INV_DEPTH : INV_DEPTH + 3]).sum(dim=-1)
     z = 1.0 / torch.where(included, inv_depth, 1.0)
 
@@ -74,11 +73,16 @@ def _rasterize_tiles(params: Tensor, bins: TileBins, tiles: Tensor, width: int, 
     best = w.argmax(dim=-1)
     dominant = torch.where(hit, tri.gather(1, best), -1)
     flat = lambda t: t.flatten(0, 1)  # noqa: E731  (Tc, 256, ...) -> (Tc * 256, ...)
+    # rgb = sum_n w_n sum_j l_nj C_nj and normal = sum_n w_n n_n, as batched matrix products.
+    rgb = torch.bmm(
+        (w[..., None] * ell).flatten(-2), prm[:, 0, :, COLOR : COLOR + 9].reshape(len(tiles), -1, 3)
+    )
+    normal = torch.bmm(w, prm[:, 0, :, NORMAL : NORMAL + 3])
     return (
-        flat((w[..., None] * colour).sum(dim=-2)),
+        flat(rgb),
         flat(depth),
         flat(acc),
-        flat((w[..., None] * prm[..., NORMAL : NORMAL + 3]).sum(dim=-2)),
+        flat(normal),
         flat(median),
         flat(distortion),
         flat(dominant),
