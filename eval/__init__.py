@@ -7,8 +7,7 @@ The offline ``lts`` command line is mounted in :mod:`eval.cli`. Names are import
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from rig.lazy import lazy_exports
 
 _EXPORTS = {
     "GeometricMetrics": "eval.geometry",
@@ -26,10 +25,4 @@ _EXPORTS = {
     "drop_probes": "eval.physics",
     "footprint_grid": "eval.physics",
 }
-__all__ = sorted(_EXPORTS)
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _EXPORTS:
-        raise AttributeError(f"module 'eval' has no attribute {name!r}")
-    return getattr(importlib.import_module(_EXPORTS[name]), name)
+__all__, __getattr__ = lazy_exports(__name__, _EXPORTS)

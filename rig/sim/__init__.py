@@ -17,8 +17,7 @@ Public API (imported lazily, so that ``lts --help`` does not load open3d)::
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from rig.lazy import lazy_exports
 
 _EXPORTS = {
     "SimConfig": "rig.sim.config",
@@ -41,10 +40,4 @@ _EXPORTS = {
     "SensorClock": "rig.sim.clocks",
     "preview_image": "rig.sim.preview",
 }
-__all__ = sorted(_EXPORTS)
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _EXPORTS:
-        raise AttributeError(f"module 'rig.sim' has no attribute {name!r}")
-    return getattr(importlib.import_module(_EXPORTS[name]), name)
+__all__, __getattr__ = lazy_exports(__name__, _EXPORTS)
