@@ -1,19 +1,17 @@
-"""splat: triangle model, differentiable rasteriser (reference / CPU / CUDA), losses, training, export."""
+"""splat: triangle model, differentiable rasteriser (reference / CPU / CUDA), losses, training, export.
+
+Names are imported on first use (PEP 562) so that ``lts --help``, which imports this package,
+does not load torch.
+"""
 
 from __future__ import annotations
 
-from typing import Any
+from rig.lazy import lazy_exports
 
-# The rasteriser imports torch; load it on first use so that `import splat` (and `lts --help`,
-# which mounts splat.cli) stays fast.
-_RASTER_EXPORTS = {"render", "RenderOutput", "ErrorStats", "BackendUnavailableError"}
-
-__all__ = sorted(_RASTER_EXPORTS)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _RASTER_EXPORTS:
-        from splat import raster
-
-        return getattr(raster, name)
-    raise AttributeError(f"module 'splat' has no attribute {name!r}")
+_EXPORTS = {
+    "BackendUnavailableError": "splat.raster",
+    "ErrorStats": "splat.raster",
+    "RenderOutput": "splat.raster",
+    "render": "splat.raster",
+}
+__all__, __getattr__ = lazy_exports(__name__, _EXPORTS)
