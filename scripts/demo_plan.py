@@ -16,7 +16,7 @@ STAGES = [
     ("slam", "import mesh-SLAM output or run the fallback mapper (slam_bridge)"),
     ("prepare", "build keyframes: undistorted images, poses, LiDAR depth, normal priors (slam_bridge)"),
     ("train", "LiDAR-guided coarse-to-fine triangle splatting and mesh export (splat)"),
-    ("eval", "metrics against ground truth, leaned views, physics test, report.html (eval)"),
+    ("eval", "metrics vs ground truth (so far only `lts eval --mesh`; RUN_DIR and report.html to come)"),
     ("reconstruct", "all of the above on one session, resumable (end to end)"),
     ("demo", "record a virtual-rig scene through the mock devices and reconstruct it"),
 ]
