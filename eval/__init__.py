@@ -1,5 +1,5 @@
-"""eval: photometric and geometric metrics, physics collision test (and, to come, leaned views,
-reports and benchmarks).
+"""eval: photometric and geometric metrics, leaned-view holes, physics collision test (and, to
+come, reports and benchmarks).
 
 The offline ``lts`` command line is mounted in :mod:`eval.cli`. Names are imported on first use
 (PEP 562) so that ``lts --help``, which imports this package, does not load torch.
@@ -19,6 +19,9 @@ _EXPORTS = {
     "lpips": "eval.photometric",
     "psnr": "eval.photometric",
     "ssim": "eval.photometric",
+    "HoleResult": "eval.leaned_views",
+    "leaned_poses": "eval.leaned_views",
+    "mesh_hole_fraction": "eval.leaned_views",
     "CollisionComparison": "eval.physics",
     "DropResult": "eval.physics",
     "compare_drops": "eval.physics",
