@@ -1,0 +1,95 @@
+"""Comparing a reconstruction with a virtual-rig ground truth (``lts sim OUT/ground_truth``).
+
+A reconstruction lives in its SLAM map frame; the ground truth in the simulator's world. The two
+are related by the rigid transform that takes the keyframe camera poses onto the true camera
+poses at the same stamps (:func:`~eval.trajectory_metrics.pose_alignment`, orientations
+included, so a near-straight path does not leave a rotation free).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from eval.geometry import DEFAULT_SAMPLES, GeometricMetrics, compare_point_sets, frustum_mask, sample_surface
+from eval.trajectory_metrics import pose_alignment
+from rig.errors import InputError
+from rig.mesh_io import load_mesh
+from rig.trajectory_io import read_tum
+from slam_bridge.scene import Scene
+
+GT_MESH = "mesh.ply"
+GT_CAMERA_TRAJECTORY = "trajectory.tum"
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """A ground-truth mesh in the reconstruction's world frame, and the alignment used.
+
+    Attributes:
+        mesh: the ground-truth mesh moved into the scene's world frame.
+        T_gt_world: ``(4, 4)`` scene world → ground-truth world.
+        pose_rmse_m: RMS position difference of the aligned keyframe poses (how well they agree).
+    """
+
+    mesh: trimesh.Trimesh
+    T_gt_world: np.ndarray
+    pose_rmse_m: float
+
+
+def ground_truth_dir(path: str | Path) -> Path:
+    """The folder holding ``mesh.ply`` and ``trajectory.tum``: ``path`` itself, its
+    ``ground_truth/`` sub-folder (a simulation's output folder), or the mesh file's folder."""
+    path = Path(path)
+    for candidate in (path, path / "ground_truth", path.parent):
+        if (candidate / GT_MESH).is_file() and (candidate / GT_CAMERA_TRAJECTORY).is_file():
+            return candidate
+    raise InputError(
+        f"expected a ground-truth folder with {GT_MESH} and {GT_CAMERA_TRAJECTORY} "
+        "(lts sim OUT/ground_truth)",
+        path=path,
+    )
+
+
+def load_ground_truth(scene: Scene, path: str | Path) -> GroundTruth:
+    """Load a virtual-rig ground truth and move its mesh into ``scene``'s world frame."""
+    folder = ground_truth_dir(path)
+    truth = read_tum(folder / GT_CAMERA_TRAJECTORY)
+    stamps = np.array([k.t_ns for k in scene.keyframes], dtype=np.int64)
+    covered = truth.covers(stamps)
+    if covered.sum() < 3:
+        raise InputError(
+            f"covers {int(covered.sum())} of the scene's {len(stamps)} keyframe stamps; need 3 to align "
+            "(is this the ground truth of the session the scene was prepared from?)",
+            path=folder / GT_CAMERA_TRAJECTORY,
+        )
+    estimated = np.stack([k.T_world_cam for k in scene.keyframes])[covered]
+    true_poses = truth.interpolate(stamps[covered])
+    T_gt_world = pose_alignment(estimated, true_poses)
+    aligned = np.einsum("ij,njk->nik", T_gt_world, estimated)[:, :3, 3]
+    rmse = float(np.sqrt(np.mean(np.sum((aligned - true_poses[:, :3, 3]) ** 2, axis=1))))
+    mesh = load_mesh(folder / GT_MESH).copy()
+    mesh.apply_transform(np.linalg.inv(T_gt_world))
+    return GroundTruth(mesh, T_gt_world, rmse)
+
+
+def compare_with_ground_truth(
+    reconstructed: trimesh.Trimesh,
+    scene: Scene,
+    truth: GroundTruth,
+    threshold_m: float = 0.1,
+    samples: int = DEFAULT_SAMPLES,
+    far_m: float = np.inf,
+) -> GeometricMetrics:
+    """Geometric metrics of a mesh in the scene's world frame against the ground truth, both
+    culled to the union of the training cameras' frusta (the culled-mesh protocol of the Replica
+    evaluations): surfaces no training camera saw count neither for nor against a method."""
+    poses = np.stack([k.T_world_cam for k in scene.split("train")])
+    rec_points = sample_surface(reconstructed, samples, seed=0)
+    gt_points = sample_surface(truth.mesh, samples, seed=1)
+    rec_points = rec_points[frustum_mask(rec_points, poses, scene.camera, far=far_m)]
+    gt_points = gt_points[frustum_mask(gt_points, poses, scene.camera, far=far_m)]
+    return compare_point_sets(rec_points, gt_points, threshold_m)

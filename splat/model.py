@@ -1,0 +1,158 @@
+"""The triangle model: independent triangles, their learnable parameters and activations.
+
+Each triangle owns its three vertices (``F`` triangles, ``3F`` vertices), so triangles can move,
+be cloned, subdivided and pruned one by one. Parameters (all leaf tensors, rows = triangles):
+
+- ``vertices`` ``(F, 3, 3)`` world positions;
+- ``colors`` ``(F, 3, 3)`` per-vertex colour logits (``sigmoid`` → RGB in [0, 1], barycentric
+  inside the triangle);
+- ``opacity`` ``(F,)`` opacity logits; the activated opacity is
+  ``floor + (1 - floor) · sigmoid(logit)`` with the TS+ rising ``opacity_floor`` (1 → opaque).
+
+``sigma`` (the window sharpness, annealed by the schedule) and ``opacity_floor`` are schedule
+state, not learnt.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+from torch import Tensor
+
+from rig.camera import CameraModel
+from rig.errors import InputError
+from splat.raster import RenderOutput, render
+
+PARAM_NAMES = ("vertices", "colors", "opacity")
+#: Colour logits are clamped to this range so that sigmoid saturation keeps a usable gradient.
+LOGIT_LIMIT = 8.0
+
+
+def logit(p: Tensor | float, eps: float = 1e-4) -> Tensor:
+    """Inverse sigmoid of ``p`` clamped to ``[eps, 1 - eps]``."""
+    p = torch.as_tensor(p).clamp(eps, 1 - eps)
+    return torch.log(p / (1 - p))
+
+
+@dataclass
+class TriangleModel:
+    """Independent triangles with per-vertex colours and per-triangle opacity.
+
+    Attributes:
+        params: ``{"vertices": (F, 3, 3), "colors": (F, 3, 3), "opacity": (F,)}`` leaf tensors.
+        sigma: window sharpness (> 0; smaller is sharper).
+        opacity_floor: lower bound of the activated opacity in [0, 1].
+    """
+
+    params: dict[str, Tensor]
+    sigma: float = 1.0
+    opacity_floor: float = 0.0
+
+    @classmethod
+    def from_triangles(
+        cls, triangles: Tensor, colors: Tensor, opacity: Tensor | float = 0.5, sigma: float = 1.0
+    ) -> TriangleModel:
+        """A model from triangle corners ``(F, 3, 3)``, RGB in [0, 1] ``(F, 3, 3)`` and opacity in
+        (0, 1) — a scalar or ``(F,)``."""
+        if triangles.dim() != 3 or triangles.shape[1:] != (3, 3):
+            raise InputError(f"expected triangles of shape (F, 3, 3), got {tuple(triangles.shape)}")
+        if colors.shape != triangles.shape:
+            raise InputError(f"expected colours of shape {tuple(triangles.shape)}, got {tuple(colors.shape)}")
+        n = len(triangles)
+        opacity = torch.as_tensor(opacity, dtype=triangles.dtype).expand(n)
+        params = {
+            "vertices": triangles.detach().clone(),
+            "colors": logit(colors.detach().to(triangles.dtype)).clamp(-LOGIT_LIMIT, LOGIT_LIMIT),
+            "opacity": logit(opacity.detach()).to(triangles.dtype).clone(),
+        }
+        for p in params.values():
+            p.requires_grad_(True)
+        return cls(params, sigma)
+
+    @property
+    def n_triangles(self) -> int:
+        return len(self.params["vertices"])
+
+    @property
+    def device(self) -> torch.device:
+        return self.params["vertices"].device
+
+    def triangle_opacity(self) -> Tensor:
+        """``(F,)`` activated opacity in ``[opacity_floor, 1]``."""
+        return self.opacity_floor + (1.0 - self.opacity_floor) * torch.sigmoid(self.params["opacity"])
+
+    def triangle_colors(self) -> Tensor:
+        """``(F, 3, 3)`` activated per-vertex RGB in [0, 1]."""
+        return torch.sigmoid(self.params["colors"])
+
+    def render(
+        self,
+        camera: CameraModel,
+        T_cam_world: Tensor,
+        *,
+        target_depth: Tensor | None = None,
+        target_normal: Tensor | None = None,
+        backend: str = "auto",
+    ) -> RenderOutput:
+        """Render the model from one camera (``T_cam_world`` ``(4, 4)``); see :func:`splat.render`."""
+        n = self.n_triangles
+        vertices = self.params["vertices"].reshape(3 * n, 3)
+        faces = torch.arange(3 * n, device=self.device).view(n, 3)
+        colors = self.triangle_colors().reshape(3 * n, 3)
+        opacities = self.triangle_opacity().repeat_interleave(3)
+        return render(
+            vertices, faces, colors, opacities, self.sigma, camera, T_cam_world,
+            backend=backend, target_depth=target_depth, target_normal=target_normal,
+        )  # fmt: skip
+
+    def to_state(self) -> dict:
+        """Plain tensors (detached, CPU) and schedule state, for ``torch.save``."""
+        return {
+            **{name: p.detach().cpu().clone() for name, p in self.params.items()},
+            "sigma": self.sigma,
+            "opacity_floor": self.opacity_floor,
+        }
+
+    @classmethod
+    def from_state(
+        cls, state: dict, device: torch.device | str = "cpu", path: Path | None = None
+    ) -> TriangleModel:
+        """Inverse of :meth:`to_state`; errors name the file and the missing/malformed field."""
+        params = {}
+        for name in PARAM_NAMES:
+            if name not in state or not isinstance(state[name], Tensor):
+                raise InputError("missing model tensor", path=path, field=name)
+            params[name] = state[name].to(device).clone().requires_grad_(True)
+        n = len(params["vertices"])
+        shapes = {"vertices": (n, 3, 3), "colors": (n, 3, 3), "opacity": (n,)}
+        for name, shape in shapes.items():
+            if tuple(params[name].shape) != shape:
+                got = tuple(params[name].shape)
+                raise InputError(f"expected shape {shape}, got {got}", path=path, field=name)
+            if not bool(torch.isfinite(params[name]).all()):
+                raise InputError("holds NaN or Inf", path=path, field=name)
+        return cls(params, float(state.get("sigma", 1.0)), float(state.get("opacity_floor", 0.0)))
+
+
+def save_model(model: TriangleModel, path: str | Path) -> None:
+    """Write the model to ``path`` atomically (a temporary file renamed into place)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save(model.to_state(), tmp)
+    tmp.replace(path)
+
+
+def load_model(path: str | Path, device: torch.device | str = "cpu") -> TriangleModel:
+    """Read a model written by :func:`save_model` (errors name the file)."""
+    path = Path(path)
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise InputError("no such model file", path=path) from None
+    except Exception as exc:  # torch raises many types for truncated or foreign files
+        raise InputError(f"cannot read model ({type(exc).__name__}: {exc})", path=path) from None
+    if not isinstance(state, dict):
+        raise InputError("not a triangle model file", path=path)
+    return TriangleModel.from_state(state, device, path)
