@@ -18,6 +18,7 @@ from rig.sim import cli as sim_cli
 from slam_bridge import cli as slam_cli
 from slam_bridge.prepare_cli import prepare_command
 from splat import cli as splat_cli
+from splat.train_cli import train_command
 
 app = typer.Typer(
     name="lts",
@@ -34,6 +35,7 @@ app.command("sim")(sim_cli.sim)
 app.command("eval")(eval_command)
 app.add_typer(slam_cli.app, name="slam")
 app.command("prepare")(prepare_command)
+app.command("train")(train_command)
 app.add_typer(calib_cli.app, name="calibrate")
 app.add_typer(splat_cli.bench_app, name="bench")
 

@@ -1,5 +1,7 @@
 """splat: triangle model, differentiable rasteriser (reference / CPU / CUDA), losses, training, export.
 
+The run folder layout is in :mod:`splat.run_dir`; ``lts train`` is :mod:`splat.train_cli`.
+
 Names are imported on first use (PEP 562) so that ``lts --help``, which imports this package,
 does not load torch.
 """
@@ -13,5 +15,20 @@ _EXPORTS = {
     "ErrorStats": "splat.raster",
     "RenderOutput": "splat.raster",
     "render": "splat.raster",
+    "TriangleModel": "splat.model",
+    "load_model": "splat.model",
+    "save_model": "splat.model",
+    "TrainConfig": "splat.config",
+    "make_config": "splat.config",
+    "load_config": "splat.config",
+    "TrainResult": "splat.trainer",
+    "TrainingDivergedError": "splat.trainer",
+    "TrainingInterruptedError": "splat.trainer",
+    "train": "splat.trainer",
+    "export_mesh": "splat.export",
+    "decouple_and_scale": "splat.init_mesh",
+    "ground_fill": "splat.init_mesh",
+    "delaunay_triangles": "splat.init_delaunay",
+    "densify": "splat.densify",
 }
 __all__, __getattr__ = lazy_exports(__name__, _EXPORTS)

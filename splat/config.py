@@ -1,0 +1,166 @@
+"""Training configuration: one validated model, presets, and the method/ablation switches.
+
+A run is fully described by its :class:`TrainConfig` (written to ``RUN_DIR/config.yaml``), so a
+resumed run can check that it continues the same experiment.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from rig.errors import InputError
+
+Method = Literal["ours", "tsplus", "mesh-init", "lidar-init", "no-clone", "no-subdiv"]
+Preset = Literal["fast", "default", "paper"]
+METHODS: tuple[str, ...] = Method.__args__  # type: ignore[attr-defined]
+PRESETS: tuple[str, ...] = Preset.__args__  # type: ignore[attr-defined]
+
+
+class TrainConfig(BaseModel):
+    """Every knob of a training run. Fractions are of ``iterations``."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    method: Method = "ours"
+    preset: Preset = "default"
+    iterations: int = Field(3000, ge=1)
+    seed: int = 0
+    device: str = "cpu"
+
+    # Initialisation.
+    init: Literal["mesh", "delaunay-sfm", "delaunay-lidar"] = "mesh"
+    init_scale: float = Field(2.0, gt=0, description="decoupled faces are scaled about their centroid")
+    init_color: Literal["grey", "project"] = "project"
+    init_opacity: float = Field(0.7, gt=0, lt=1)
+    init_max_triangles: int = Field(30_000, ge=100, description="warm-start mesh is simplified to this")
+    init_noise_m: float = Field(0.0, ge=0, description="Gaussian noise on warm-start vertices (robustness)")
+    ground_fill: bool = True
+    ground_cell_m: float = Field(0.15, gt=0)
+    lidar_init_points: int = Field(20_000, ge=4)
+
+    # Loss weights (Eq. 3): (1-λ) L1 + λ D-SSIM + β1 opacity + β2 normal + β3 depth + β4 distortion.
+    lambda_dssim: float = Field(0.2, ge=0, le=1)
+    w_opacity: float = Field(0.0005, ge=0)
+    w_normal: float = Field(0.05, ge=0)
+    w_depth: float = Field(0.2, ge=0)
+    w_distortion: float = Field(0.01, ge=0)
+
+    # Learning rates (Adam) and their schedule.
+    lr_vertices: float = Field(3e-4, ge=0)
+    lr_colors: float = Field(0.02, ge=0)
+    lr_opacity: float = Field(0.05, ge=0)
+    vertex_lr_delay: float = Field(0.05, ge=0, le=1, description="vertex lr is 0 for this fraction")
+    lr_final_factor: float = Field(0.1, gt=0, le=1)
+
+    # TS+ schedules: sigma anneals, the opacity floor rises to 1 (opaque).
+    sigma_start: float = Field(1.0, gt=0)
+    sigma_end: float = Field(0.05, gt=0)
+    sigma_anneal_end: float = Field(0.7, gt=0, le=1)
+    floor_rise_start: float = Field(0.55, ge=0, le=1)
+    floor_rise_end: float = Field(0.8, ge=0, le=1)
+
+    # Densification.
+    densify: Literal["variance", "opacity", "none"] = "variance"
+    clone: bool = True
+    subdivide: bool = True
+    densify_every: int = Field(500, ge=1)
+    densify_until: float = Field(0.55, ge=0, le=1)
+    growth_rate: float = Field(0.15, ge=0, description="new triangles per densification / current count")
+    max_triangles: int = Field(80_000, ge=1)
+    lidar_noise_m: float = Field(0.015, gt=0, description="depth-error std treated as noise")
+    normal_noise: float = Field(0.02, gt=0, description="std of 1 - n·n_prior treated as noise")
+    prune_opacity: float = Field(0.05, ge=0, lt=1)
+    prune_unseen: bool = Field(
+        False,
+        description="prune triangles no training view sees: yes for Delaunay starts (arbitrary tetrahedron "
+        "faces), no for the mesh warm start (what no camera sees is still the LiDAR's geometry)",
+    )
+
+    # Skipping work and bookkeeping.
+    eval_every: int = Field(250, ge=1)
+    patience: int = Field(3, ge=1, description="evaluations without improvement before stopping")
+    min_improvement_db: float = Field(0.05, ge=0)
+    drop_redundant_keyframes: bool = True
+    redundant_motion_m: float = Field(0.05, ge=0)
+    redundant_turn_deg: float = Field(2.0, ge=0)
+    checkpoint_every: int = Field(500, ge=1)
+    max_rejected_steps: int = Field(20, ge=1, description="consecutive non-finite steps before giving up")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> TrainConfig:
+        if self.floor_rise_end < self.floor_rise_start:
+            raise ValueError("floor_rise_end must not come before floor_rise_start")
+        return self
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.model_dump(), sort_keys=False)
+
+
+#: What each method changes relative to ``ours`` (the method itself).
+METHOD_OVERRIDES: dict[str, dict[str, Any]] = {
+    "ours": {},
+    # The photometric-only Triangle Splatting+ baseline: Delaunay of SfM points, TS+ densification.
+    "tsplus": {
+        "init": "delaunay-sfm", "w_depth": 0.0, "w_normal": 0.0, "densify": "opacity", "clone": False,
+        "ground_fill": False, "prune_unseen": True,
+    },
+    # Ablations.
+    "mesh-init": {"densify": "opacity", "clone": False},
+    "lidar-init": {"init": "delaunay-lidar", "ground_fill": False, "prune_unseen": True},
+    "no-clone": {"clone": False},
+    "no-subdiv": {"subdivide": False},
+}  # fmt: skip
+
+PRESET_OVERRIDES: dict[str, dict[str, Any]] = {
+    "fast": {"iterations": 1200, "densify_every": 300, "eval_every": 200, "init_max_triangles": 15_000},
+    "default": {},
+    # TS+-like schedules over a longer run.
+    "paper": {
+        "iterations": 10_000, "densify_every": 500, "init_max_triangles": 60_000, "max_triangles": 200_000,
+        "vertex_lr_delay": 0.1, "eval_every": 500,
+    },
+}  # fmt: skip
+
+
+def make_config(method: str = "ours", preset: str = "default", **overrides: Any) -> TrainConfig:
+    """The config of ``method`` at ``preset``, then ``overrides`` (field → value) on top."""
+    if method not in METHOD_OVERRIDES:
+        raise InputError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}", field="method")
+    if preset not in PRESET_OVERRIDES:
+        raise InputError(f"unknown preset {preset!r}; expected one of {', '.join(PRESETS)}", field="preset")
+    values = {
+        "method": method,
+        "preset": preset,
+        **PRESET_OVERRIDES[preset],
+        **METHOD_OVERRIDES[method],
+        **overrides,
+    }
+    return validated(values)
+
+
+def validated(values: dict[str, Any], path: Path | None = None) -> TrainConfig:
+    """A :class:`TrainConfig` from plain values; errors name the file and the offending field."""
+    try:
+        return TrainConfig(**values)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        field = ".".join(str(p) for p in first["loc"]) or None
+        raise InputError(first["msg"], path=path, field=field) from None
+
+
+def load_config(path: str | Path) -> TrainConfig:
+    """Read ``config.yaml`` written by a run."""
+    path = Path(path)
+    try:
+        values = yaml.safe_load(path.read_text())
+    except OSError:
+        raise InputError("no such config file", path=path) from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"not valid YAML ({exc})", path=path) from None
+    if not isinstance(values, dict):
+        raise InputError("expected a mapping of config fields", path=path)
+    return validated(values, path)

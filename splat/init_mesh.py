@@ -1,0 +1,191 @@
+"""The warm start (ours): a SLAM mesh's faces decoupled into independent, scaled triangles.
+
+Also the two preparations of the warm-start mesh that keep training within a CPU budget and fill
+what a level-mounted LiDAR never sees: quadric simplification to a face budget, and a ground
+fill — the floor plane, fitted to the mesh, extended under the pixels of the training views that
+see no warm-start surface (a 360° LiDAR mounted level at robot height never sees the floor within a
+few metres, which the camera looks at all the time).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from rig.camera import CameraModel
+
+
+def decouple_and_scale(vertices: np.ndarray, faces: np.ndarray, scale: float = 2.0) -> np.ndarray:
+    """Independent triangles ``(F, 3, 3)`` from a mesh (``(V, 3)``, ``(F, 3)``), each scaled about
+    its centroid ``g``: ``v' = g + scale (v - g)`` (centroids kept, areas × scale²)."""
+    triangles = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
+    centroid = triangles.mean(axis=1, keepdims=True)
+    return centroid + scale * (triangles - centroid)
+
+
+def simplify(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh:
+    """The mesh with at most ``max_faces`` faces (open3d quadric decimation; unchanged if smaller)."""
+    if len(mesh.faces) <= max_faces:
+        return mesh
+    import open3d as o3d
+
+    legacy = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(np.asarray(mesh.vertices, dtype=np.float64)),
+        o3d.utility.Vector3iVector(np.asarray(mesh.faces, dtype=np.int32)),
+    )
+    small = legacy.simplify_quadric_decimation(target_number_of_triangles=int(max_faces))
+    small.remove_degenerate_triangles()
+    small.remove_unreferenced_vertices()
+    return trimesh.Trimesh(np.asarray(small.vertices), np.asarray(small.triangles), process=False)
+
+
+@dataclass(frozen=True)
+class GroundFill:
+    """Floor triangles added to a warm start, and why there are none when there are none.
+
+    Attributes:
+        triangles: ``(G, 3, 3)`` world-frame floor triangles (two per grid cell).
+        plane: ``(4,)`` ``n·x + d = 0`` with ``n`` pointing up, or None when no floor was found.
+        reason: a one-line account (cells added, or why nothing was).
+    """
+
+    triangles: np.ndarray
+    plane: np.ndarray | None
+    reason: str
+
+
+def _up_direction(poses_world_cam: np.ndarray) -> np.ndarray:
+    """Approximate world up ``(3,)``: minus the mean camera y axis (OpenCV y points down); off by
+    the cameras' mean pitch, hence the generous tilt tolerance of the floor search."""
+    down = poses_world_cam[:, :3, 1].mean(axis=0)
+    return -down / np.linalg.norm(down)
+
+
+def _ransac_plane(points: np.ndarray, threshold_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Unit-normal plane ``(4,)`` and inlier indices of a RANSAC fit (open3d, seeded), refined by
+    least squares on the inliers."""
+    import open3d as o3d
+
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    o3d.utility.random.seed(0)
+    _, inliers = cloud.segment_plane(distance_threshold=threshold_m, ransac_n=3, num_iterations=500)
+    inliers = np.asarray(inliers)
+    centre = points[inliers].mean(axis=0)
+    normal = np.linalg.svd(points[inliers] - centre, full_matrices=False)[2][2]
+    return np.append(normal, -normal @ centre), inliers
+
+
+def fit_floor_plane(
+    mesh: trimesh.Trimesh,
+    poses_world_cam: np.ndarray,
+    lidar: np.ndarray | None = None,
+    max_tilt_deg: float = 30.0,
+    min_faces: int = 30,
+) -> np.ndarray | None:
+    """The floor ``(4,)`` (unit normal up, ``n·x + d = 0``), or None when fewer than ``min_faces``
+    support it: a RANSAC plane through the centroids of up-facing faces below every camera, then
+    refitted to the LiDAR points ``(N, 3)`` within 15 cm of it when given — a TSDF surface seen at
+    grazing angles sits centimetres off the floor, the LiDAR returns themselves do not."""
+    up = _up_direction(poses_world_cam)
+    normals = np.asarray(mesh.face_normals)
+    centroids = np.asarray(mesh.triangles_center)
+    lowest_camera = float((poses_world_cam[:, :3, 3] @ up).min())
+    # Faces are oriented towards the trajectory, so the floor's faces point up; TSDF back faces
+    # below the floor point down and are left out.
+    level = normals @ up > np.cos(np.radians(max_tilt_deg))
+    below = centroids @ up < lowest_camera - 0.1
+    candidates = centroids[level & below]
+    if len(candidates) < min_faces:
+        return None
+    plane, inliers = _ransac_plane(candidates, 0.03)
+    if len(inliers) < min_faces:
+        return None
+    if lidar is not None:
+        near = lidar[np.abs(lidar @ plane[:3] + plane[3]) < 0.15]
+        if len(near) >= min_faces:
+            plane, _ = _ransac_plane(near, 0.03)
+    if plane[:3] @ up < 0:
+        plane = -plane
+    if plane[:3] @ up < np.cos(np.radians(max_tilt_deg)):
+        return None
+    return plane
+
+
+def _behind_wall(scene, origin: np.ndarray, points: np.ndarray, up: np.ndarray, margin: float) -> np.ndarray:
+    """``(N,)`` True where a level ray at the camera's height towards the point above each floor
+    point ``(N, 3)`` hits the mesh first: the floor there lies beyond a wall (seen through a hole
+    in it), not in the room."""
+    import open3d as o3d
+
+    above = points + np.outer((origin - points) @ up, up)
+    offset = above - origin
+    distance = np.linalg.norm(offset, axis=1)
+    direction = offset / np.maximum(distance, 1e-9)[:, None]
+    rays = np.hstack([np.broadcast_to(origin, direction.shape), direction]).astype(np.float32)
+    t_hit = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+    return t_hit < distance - margin
+
+
+def ground_fill(
+    mesh: trimesh.Trimesh,
+    camera: CameraModel,
+    poses_world_cam: np.ndarray,
+    lidar: np.ndarray | None = None,
+    cell_m: float = 0.15,
+    max_range_m: float = 8.0,
+    pixel_stride: int = 4,
+) -> GroundFill:
+    """Floor cells seen by the cameras through holes in the warm-start mesh.
+
+    Rays of every ``pixel_stride``-th pixel of each view (``poses_world_cam`` ``(K, 4, 4)``) that
+    hit no warm-start face before the floor plane are intersected with it (within
+    ``max_range_m``), unless a wall stands between the camera and the point; each grid cell of
+    ``cell_m`` they land in becomes two triangles. ``lidar`` ``(N, 3)`` refines the plane.
+    """
+    import open3d as o3d
+
+    empty = np.zeros((0, 3, 3))
+    plane = fit_floor_plane(mesh, poses_world_cam, lidar)
+    if plane is None:
+        return GroundFill(empty, None, "no floor plane in the warm-start mesh; ground fill skipped")
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
+        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
+    )
+    ys, xs = np.mgrid[0 : camera.height : pixel_stride, 0 : camera.width : pixel_stride]
+    pixels = np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
+    rays_cam = camera.unproject(pixels, 1.0)
+    rays_cam /= np.linalg.norm(rays_cam, axis=1, keepdims=True)
+    n, d = plane[:3], plane[3]
+    hits = []
+    for pose in poses_world_cam:
+        origin = pose[:3, 3]
+        dirs = rays_cam @ pose[:3, :3].T
+        rays = np.hstack([np.broadcast_to(origin, dirs.shape), dirs]).astype(np.float32)
+        t_mesh = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+        denom = dirs @ n
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_floor = -(origin @ n + d) / denom
+        through_hole = (denom < -1e-3) & (t_floor > 0) & (t_floor < max_range_m) & (t_mesh > t_floor + cell_m)
+        points = origin + t_floor[through_hole, None] * dirs[through_hole]
+        hits.append(points[~_behind_wall(scene, origin, points, n, cell_m)])
+    points = np.concatenate(hits) if hits else np.zeros((0, 3))
+    if len(points) == 0:
+        return GroundFill(empty, plane, "the warm-start mesh covers the floor the cameras see; nothing added")
+    # Cells on the plane in an orthonormal basis (u, v) of it.
+    u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    cells = np.unique(np.floor(np.column_stack([points @ u, points @ v]) / cell_m).astype(np.int64), axis=0)
+    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float64)
+    uv = (cells[:, None, :] + corners[None]) * cell_m  # (C, 4, 2)
+    origin_on_plane = -d * n
+    xyz = origin_on_plane + uv[..., :1] * u + uv[..., 1:] * v  # (C, 4, 3)
+    # Two triangles per cell, wound so that their normals point up.
+    triangles = np.concatenate([xyz[:, [0, 1, 2]], xyz[:, [0, 2, 3]]])
+    if np.cross(triangles[0, 1] - triangles[0, 0], triangles[0, 2] - triangles[0, 0]) @ n < 0:
+        triangles = triangles[:, ::-1]
+    return GroundFill(triangles, plane, f"{len(cells)} floor cells of {cell_m:g} m added under mesh holes")

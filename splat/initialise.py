@@ -1,0 +1,116 @@
+"""The initial triangles of each method: the decoupled SLAM mesh (ours), or a Delaunay
+tetrahedralisation of SfM points (the TS+ baseline) or of LiDAR points (ablation)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from rig.mesh_io import load_mesh
+from slam_bridge.scene import Keyframe, Scene
+from splat.config import TrainConfig
+from splat.init_mesh import decouple_and_scale, ground_fill, simplify
+from splat.lidar_points import lidar_points
+from splat.model import TriangleModel
+from splat.views import View
+
+GREY = 0.5
+
+
+@dataclass(frozen=True)
+class Initialisation:
+    """Triangles ``(F, 3, 3)``, their colours ``(F, 3, 3)`` in [0, 1] (None: to be projected from
+    the views), and one line per decision taken."""
+
+    triangles: np.ndarray
+    colors: np.ndarray | None
+    notes: list[str]
+
+
+def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Initialisation:
+    mesh = load_mesh(scene.mesh_path)
+    notes = []
+    if len(mesh.faces) > config.init_max_triangles:
+        notes.append(
+            f"warm-start mesh simplified from {len(mesh.faces)} to {config.init_max_triangles} faces"
+        )
+        mesh = simplify(mesh, config.init_max_triangles)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    if config.init_noise_m > 0:
+        rng = np.random.default_rng(config.seed)
+        vertices = vertices + rng.normal(0.0, config.init_noise_m, vertices.shape)
+        notes.append(f"Gaussian noise of {config.init_noise_m:g} m added to the warm-start vertices")
+    triangles = decouple_and_scale(vertices, np.asarray(mesh.faces), config.init_scale)
+    if config.ground_fill:
+        poses = np.stack([k.T_world_cam for k in train])
+        fill = ground_fill(mesh, scene.camera, poses, lidar_points(scene, train), config.ground_cell_m)
+        notes.append(fill.reason)
+        if len(fill.triangles):
+            corners = fill.triangles.reshape(-1, 3)
+            faces = np.arange(len(corners)).reshape(-1, 3)
+            triangles = np.concatenate([triangles, decouple_and_scale(corners, faces, config.init_scale)])
+    colors = None if config.init_color == "project" else np.full_like(triangles, GREY)
+    return Initialisation(triangles, colors, notes)
+
+
+def initial_triangles(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Initialisation:
+    """The initial triangles of ``config.init`` for ``scene`` (``train``: the training keyframes)."""
+    if config.init == "mesh":
+        return _mesh_init(scene, train, config)
+    from splat.init_delaunay import delaunay_triangles
+
+    if config.init == "delaunay-sfm":
+        points, colors = scene.sparse_points()
+        triangles, tri_colors = delaunay_triangles(points, colors / 255.0, seed=config.seed)
+        return Initialisation(triangles, tri_colors, [f"Delaunay of {len(points)} SfM points"])
+    points = lidar_points(scene, train)
+    triangles, _ = delaunay_triangles(
+        points, np.full_like(points, GREY), max_points=config.lidar_init_points, seed=config.seed
+    )
+    note = f"Delaunay of {min(len(points), config.lidar_init_points)} of {len(points)} LiDAR points"
+    return Initialisation(triangles, None, [note])
+
+
+@torch.no_grad()
+def project_colors(model: TriangleModel, views: list[View], camera, backend: str = "auto") -> int:
+    """Set each triangle's colour to the mean image colour over the pixels it dominates in
+    ``views`` (first renders of the initial, grey model); returns how many triangles got one."""
+    n = model.n_triangles
+    total = torch.zeros(n, 3, dtype=torch.float64)
+    count = torch.zeros(n, dtype=torch.float64)
+    for view in views:
+        out = model.render(camera, view.T_cam_world, backend=backend)
+        owned = out.dominant >= 0
+        ids = out.dominant[owned].cpu()
+        count += torch.bincount(ids, minlength=n).double()
+        pixels = view.image[owned].cpu().double()
+        for c in range(3):
+            total[:, c] += torch.bincount(ids, weights=pixels[:, c], minlength=n)
+    seen = count > 0
+    mean = torch.full((n, 3), GREY, dtype=torch.float64)
+    mean[seen] = total[seen] / count[seen, None]
+    colors = torch.logit(mean.clamp(0.02, 0.98)).to(model.params["colors"])
+    model.params["colors"].data.copy_(colors[:, None, :].expand(n, 3, 3))
+    return int(seen.sum())
+
+
+def build_model(
+    init: Initialisation, config: TrainConfig, views: list[View], camera, log: Callable[[str], None]
+) -> TriangleModel:
+    """The initial :class:`TriangleModel` on ``config.device`` (colours projected when asked)."""
+    triangles = torch.as_tensor(init.triangles, dtype=torch.float32)
+    colors = (
+        torch.full_like(triangles, GREY)
+        if init.colors is None
+        else torch.as_tensor(init.colors).to(triangles)
+    )
+    model = TriangleModel.from_triangles(
+        triangles.to(config.device), colors.to(config.device), config.init_opacity, config.sigma_start
+    )
+    if init.colors is None and config.init_color == "project":
+        coloured = project_colors(model, views, camera)
+        log(f"colours of {coloured} of {model.n_triangles} triangles projected from {len(views)} views")
+    return model

@@ -1,0 +1,75 @@
+"""``lts train SCENE_DIR --out RUN_DIR``: the fine stage (mounted by eval/cli.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from rig.cli_support import console, emit_json
+from splat.config import METHODS, PRESETS
+
+
+def train_command(
+    scene: Path = typer.Argument(..., help="Scene folder written by lts prepare."),
+    out: Path = typer.Option(
+        ..., "--out", "-o", help="Run folder (config, metrics, checkpoints, model, mesh)."
+    ),
+    method: str = typer.Option(
+        "ours",
+        help=f"One of {', '.join(METHODS)}: ours (mesh warm start, LiDAR depth + normal losses, variance "
+        "densification), tsplus (photometric-only TS+ baseline from SfM points), or an ablation.",
+    ),
+    preset: str = typer.Option(
+        "default", help=f"One of {', '.join(PRESETS)} (iterations, budgets, schedules)."
+    ),
+    iterations: int | None = typer.Option(None, min=1, help="Override the preset's iteration count."),
+    max_triangles: int | None = typer.Option(None, min=1, help="Override the triangle budget."),
+    init_noise: float = typer.Option(
+        0.0, "--init-noise", min=0, help="Gaussian noise (m) on warm-start vertices."
+    ),
+    seed: int = typer.Option(0, help="Seed of view order, sampling and noise."),
+    device: str = typer.Option("cpu", help="cpu or cuda (the matching rasteriser kernel is used)."),
+    resume: bool = typer.Option(
+        False, "--resume", help="Continue the run in --out from its last checkpoint."
+    ),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar."),
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object (the run summary) on stdout."),
+) -> None:
+    """Optimise triangles against the images and LiDAR depth, densify, export the mesh.
+
+    Writes RUN_DIR/config.yaml, metrics.jsonl (one line per evaluation), checkpoints/last.pt
+    (every N iterations and on Ctrl-C), model.pt, summary.json, renders/ and mesh.ply/obj/glb +
+    collision.ply. Ctrl-C saves a checkpoint; rerun with --resume to continue bit for bit.
+    """
+    from splat.config import make_config
+    from splat.trainer import TrainingDivergedError, TrainingInterruptedError, train
+
+    overrides = {"seed": seed, "device": device, "init_noise_m": init_noise}
+    if iterations is not None:
+        overrides["iterations"] = iterations
+    if max_triangles is not None:
+        overrides["max_triangles"] = max_triangles
+    config = make_config(method, preset, **overrides)
+    try:
+        result = train(scene, out, config, resume=resume, progress=progress)
+    except TrainingInterruptedError as exc:
+        console.print(str(exc), highlight=False)
+        raise typer.Exit(130) from None
+    except TrainingDivergedError as exc:
+        console.print(f"error: training diverged: {exc}", highlight=False)
+        raise typer.Exit(1) from None
+    test = result.test
+    console.print(
+        f"{result.method}: {result.iterations} iterations in {result.train_seconds:.0f} s, "
+        f"{result.n_triangles} triangles; test PSNR {test.get('test_psnr', float('nan')):.2f} dB, "
+        f"SSIM {test.get('test_ssim', float('nan')):.3f}; rejected steps {result.rejected_steps}",
+        highlight=False,
+    )
+    for line in result.skips:
+        console.print(f"  skipped: {line}", highlight=False)
+    console.print(f"  mesh: {out / 'mesh.ply'}  collision: {out / 'collision.ply'}", highlight=False)
+    if json_out:
+        from dataclasses import asdict
+
+        emit_json(asdict(result))

@@ -1,0 +1,423 @@
+"""The training loop: LiDAR-guided fine stage, densification, checkpoints, resume, guards.
+
+``RUN_DIR`` (see :mod:`splat.run_dir`) receives ``config.yaml``, ``run.json``, ``metrics.jsonl``
+(one line per evaluation), ``checkpoints/last.pt``, the final ``model.pt``, test renders and the
+exported meshes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from rig.cli_support import console
+from rig.errors import InputError
+from slam_bridge.scene import Scene, load_scene
+from splat import run_dir as layout
+from splat.config import TrainConfig, load_config
+from splat.densify import DensifyStats, densify
+from splat.initialise import build_model, initial_triangles
+from splat.losses import training_loss
+from splat.model import TriangleModel, save_model
+from splat.param_rows import make_optimizer, replace_rows
+from splat.schedule import final_phase_start, schedule_at
+from splat.test_views import evaluate_views, write_renders
+from splat.views import View, load_views, redundant_keyframes
+
+
+class TrainingDivergedError(RuntimeError):
+    """Too many consecutive steps had a non-finite loss or gradient."""
+
+
+class TrainingInterruptedError(RuntimeError):
+    """Ctrl-C/SIGTERM: a checkpoint was written and ``--resume`` continues from it."""
+
+
+@dataclass
+class TrainResult:
+    """What a finished run reports (also written to ``RUN_DIR/summary.json``)."""
+
+    run_dir: str
+    method: str
+    preset: str
+    device: str
+    iterations: int
+    train_seconds: float
+    n_triangles: int
+    stopped_early: bool
+    rejected_steps: int
+    test: dict[str, float]
+    skips: list[str] = field(default_factory=list)
+    densification: list[dict] = field(default_factory=list)
+    export: dict = field(default_factory=dict)
+
+
+@dataclass
+class _State:
+    """Everything a checkpoint holds besides the model and the optimiser."""
+
+    iteration: int = 0
+    elapsed_s: float = 0.0
+    rejected_total: int = 0
+    rejected_in_a_row: int = 0
+    best_psnr: float = -math.inf
+    evals_without_gain: int = 0
+    stopped_early: bool = False
+    final_pruned: bool = False
+    skips: list[str] = field(default_factory=list)
+    densification: list[dict] = field(default_factory=list)
+
+
+def _learning_rates(config: TrainConfig) -> dict[str, float]:
+    return {"vertices": config.lr_vertices, "colors": config.lr_colors, "opacity": config.lr_opacity}
+
+
+def _apply_schedule(
+    model: TriangleModel, optimizer: torch.optim.Optimizer, config: TrainConfig, it: int
+) -> None:
+    s = schedule_at(config, it)
+    model.sigma, model.opacity_floor = s.sigma, s.opacity_floor
+    base = _learning_rates(config)
+    for group in optimizer.param_groups:
+        factor = s.vertex_lr_factor if group["name"] == "vertices" else s.lr_factor
+        group["lr"] = base[group["name"]] * factor
+
+
+def _view_order(seed: int, epoch: int, n: int) -> np.ndarray:
+    """The order of training views in ``epoch`` (a pure function of seed and epoch, so a resumed
+    run visits the same views)."""
+    return np.random.default_rng([seed, epoch]).permutation(n)
+
+
+def _finite_step(loss: torch.Tensor, model: TriangleModel) -> bool:
+    if not bool(torch.isfinite(loss)):
+        return False
+    return all(p.grad is None or bool(torch.isfinite(p.grad).all()) for p in model.params.values())
+
+
+class Trainer:
+    """One training run of ``config`` on a scene folder into ``run_dir``."""
+
+    def __init__(
+        self, scene_dir: str | Path, run_dir: str | Path, config: TrainConfig, log: Callable = console.print
+    ):
+        self.scene: Scene = load_scene(scene_dir)
+        self.run_dir = Path(run_dir)
+        self.config = config
+        self.log = log
+        self.state = _State()
+        self.generator = torch.Generator().manual_seed(config.seed)
+        if config.device.startswith("cuda") and not torch.cuda.is_available():
+            raise InputError(
+                "CUDA was asked for but torch sees no GPU here; use --device cpu", field="device"
+            )
+
+    # -- set-up ---------------------------------------------------------------------------------
+    def _select_keyframes(self) -> None:
+        train = self.scene.split("train")
+        if not train:
+            raise InputError("the scene has no training keyframes", path=self.scene.root / "scene.json")
+        c = self.config
+        if c.drop_redundant_keyframes:
+            drop = set(redundant_keyframes(train, c.redundant_motion_m, c.redundant_turn_deg))
+            if drop:
+                self.state.skips.append(
+                    f"{len(drop)} of {len(train)} training keyframes dropped: within "
+                    f"{c.redundant_motion_m:g} m and {c.redundant_turn_deg:g}° of a kept one (saves loading "
+                    "them and "
+                    f"{len(drop) / len(train):.0%} of the renders of an epoch)"
+                )
+                train = [k for i, k in enumerate(train) if i not in drop]
+        self.train_keyframes = train
+        self.test_keyframes = self.scene.split("test")
+
+    def _load_views(self) -> None:
+        device = self.config.device
+        self.train_views: list[View] = load_views(self.scene, self.train_keyframes, device=device)
+        self.test_views: list[View] = load_views(self.scene, self.test_keyframes, device=device)
+        if self.config.w_normal > 0 and all(v.normal is None for v in self.train_views):
+            self.state.skips.append("no normal prior in any training view: normal loss skipped")
+        if self.config.w_depth > 0 and all(v.depth is None for v in self.train_views):
+            self.state.skips.append("no LiDAR depth in any training view: depth loss skipped")
+
+    def _fresh_start(self) -> None:
+        init = initial_triangles(self.scene, self.train_keyframes, self.config)
+        for note in init.notes:
+            self.log(f"init: {note}")
+        self.model = build_model(
+            init, self.config, self.train_views, self.scene.camera, lambda m: self.log(f"init: {m}")
+        )
+        self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
+        self.stats = self._empty_stats()
+        layout.metrics_path(self.run_dir).write_text("")
+
+    def _empty_stats(self) -> DensifyStats:
+        return DensifyStats.empty(
+            self.model.n_triangles, self.model.params["vertices"].dtype, self.model.device
+        )
+
+    def prepare(self, resume: bool) -> None:
+        """Select keyframes, load views, then initialise or restore from the last checkpoint."""
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        checkpoint = layout.checkpoint_path(self.run_dir)
+        config_path = layout.config_path(self.run_dir)
+        if resume:
+            if not checkpoint.is_file():
+                raise InputError("no checkpoint to resume from (start without --resume)", path=checkpoint)
+            previous = load_config(config_path)
+            if previous.model_dump(exclude={"device"}) != self.config.model_dump(exclude={"device"}):
+                changed = [
+                    k
+                    for k, v in previous.model_dump().items()
+                    if getattr(self.config, k) != v and k != "device"
+                ]
+                raise InputError(
+                    f"the run was started with other settings ({', '.join(changed)}); resume with the same "
+                    "options or train into a new --out",
+                    path=config_path,
+                )
+        elif checkpoint.is_file():
+            raise InputError("already holds a training run; pass --resume to continue it or pick a new --out",
+                             path=self.run_dir)  # fmt: skip
+        self._select_keyframes()
+        self._load_views()
+        if resume:
+            self._restore(checkpoint)
+        else:
+            config_path.write_text(self.config.to_yaml())
+            layout.run_info_path(self.run_dir).write_text(
+                json.dumps({"scene": str(self.scene.root.resolve()), "config": layout.CONFIG}, indent=1)
+            )
+            self._fresh_start()
+
+    # -- checkpoints ----------------------------------------------------------------------------
+    def save_checkpoint(self) -> None:
+        path = layout.checkpoint_path(self.run_dir)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".tmp")
+        torch.save(
+            {
+                "model": self.model.to_state(),
+                "optimizer": self.optimizer.state_dict(),
+                "stats": {k: getattr(self.stats, k) for k in ("depth", "normal", "max_weight")},
+                "generator": self.generator.get_state(),
+                "state": asdict(self.state),
+            },
+            tmp,
+        )
+        tmp.replace(path)
+
+    def _restore(self, path: Path) -> None:
+        try:
+            ckpt = torch.load(path, map_location="cpu", weights_only=False)
+        except Exception as exc:  # a truncated or foreign file
+            raise InputError(f"cannot read checkpoint ({type(exc).__name__}: {exc})", path=path) from None
+        self.model = TriangleModel.from_state(ckpt["model"], self.config.device, path)
+        self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
+        self.optimizer.load_state_dict(ckpt["optimizer"])
+        s = ckpt["stats"]
+        self.stats = DensifyStats(s["depth"], s["normal"], s["max_weight"])
+        self.generator.set_state(ckpt["generator"])
+        self.state = _State(**ckpt["state"])
+        # Keep only the evaluations the checkpoint had already made.
+        metrics = layout.metrics_path(self.run_dir)
+        lines = metrics.read_text().splitlines() if metrics.is_file() else []
+        kept = [line for line in lines if json.loads(line)["iteration"] <= self.state.iteration]
+        metrics.write_text("".join(line + "\n" for line in kept))
+        self.log(f"resumed at iteration {self.state.iteration} with {self.model.n_triangles} triangles")
+
+    # -- the loop -------------------------------------------------------------------------------
+    def _step(self, it: int) -> dict[str, float] | None:
+        config = self.config
+        _apply_schedule(self.model, self.optimizer, config, it)
+        n = len(self.train_views)
+        view = self.train_views[_view_order(config.seed, it // n, n)[it % n]]
+        collect = config.densify != "none" and it < config.densify_until * config.iterations
+        out = self.model.render(
+            self.scene.camera, view.T_cam_world,
+            target_depth=view.depth if collect else None, target_normal=view.normal if collect else None,
+        )  # fmt: skip
+        terms = training_loss(out, view.image, view.depth, view.normal, self.model.triangle_opacity(), config)
+        terms.total.backward()
+        if not _finite_step(terms.total, self.model):
+            self.optimizer.zero_grad(set_to_none=True)
+            self.state.rejected_total += 1
+            self.state.rejected_in_a_row += 1
+            if self.state.rejected_in_a_row >= config.max_rejected_steps:
+                raise TrainingDivergedError(
+                    f"{self.state.rejected_in_a_row} steps in a row had a non-finite loss or gradient (last "
+                    f"at iteration {it}); the learning rates are probably too high for this scene"
+                )
+            return None
+        self.state.rejected_in_a_row = 0
+        self.optimizer.step()
+        self.optimizer.zero_grad(set_to_none=True)
+        if collect:
+            self.stats.add(out)
+        return terms.as_floats()
+
+    def _maybe_densify(self, it: int) -> None:
+        config = self.config
+        done = it + 1
+        if (
+            config.densify == "none"
+            or done % config.densify_every
+            or done > config.densify_until * config.iterations
+        ):
+            return
+        report = densify(self.model, self.optimizer, self.stats, config, self.generator, done)
+        self.state.densification.append(asdict(report))
+        if report.skipped:
+            self.state.skips.append(f"densification at {done} skipped: {report.skipped}")
+        elif report.below_noise_floor:
+            self.state.skips.append(
+                f"densification at {done}: {report.below_noise_floor} seen triangles within LiDAR/normal "
+                "noise, not sampled"
+            )
+        self.log(
+            f"densify @{done}: pruned {report.pruned}, cloned {report.cloned}, "
+            f"subdivided {report.subdivided} → {report.after} triangles"
+        )
+        self.stats = self._empty_stats()
+
+    def _maybe_final_prune(self, it: int) -> None:
+        """Before the opacity floor rises, drop triangles the optimiser made transparent: the floor
+        would otherwise turn them into opaque junk."""
+        if self.state.final_pruned or it < self.config.floor_rise_start * self.config.iterations:
+            return
+        self.state.final_pruned = True
+        keep = self.model.triangle_opacity().detach() >= 0.5
+        if not bool(keep.all()):
+            empty = {k: v[:0].detach() for k, v in self.model.params.items()}
+            replace_rows(self.model, self.optimizer, keep, empty)
+            self.stats = self._empty_stats()
+            self.log(f"pruned {int((~keep).sum())} transparent triangles before the opacity floor rises")
+
+    def _evaluate(self, it: int, losses: dict[str, float]) -> None:
+        test = evaluate_views(self.model, self.test_views, self.scene.camera) if self.test_views else {}
+        line = {
+            "iteration": it,
+            "elapsed_s": round(self.state.elapsed_s, 3),
+            "n_triangles": self.model.n_triangles,
+            "sigma": self.model.sigma,
+            "opacity_floor": self.model.opacity_floor,
+            "loss": losses,
+            **test,
+        }
+        with layout.metrics_path(self.run_dir).open("a") as f:
+            f.write(json.dumps(line) + "\n")
+        if "test_psnr" not in test or it < final_phase_start(self.config):
+            return
+        if test["test_psnr"] > self.state.best_psnr + self.config.min_improvement_db:
+            self.state.best_psnr, self.state.evals_without_gain = test["test_psnr"], 0
+        else:
+            self.state.evals_without_gain += 1
+
+    def run(self, progress: bool = True) -> TrainResult:
+        """Train from the current state to the end (or an early stop); SIGINT saves a checkpoint."""
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+        config = self.config
+        columns = [TextColumn("train"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[info]}"),
+                   TimeRemainingColumn()]  # fmt: skip
+        losses: dict[str, float] = {}
+        with Progress(*columns, console=console, disable=not progress, transient=True) as bar:
+            task = bar.add_task("train", total=config.iterations, completed=self.state.iteration, info="")
+            try:
+                while self.state.iteration < config.iterations and not self.state.stopped_early:
+                    it = self.state.iteration
+                    started = time.perf_counter()
+                    self._maybe_final_prune(it)
+                    step_losses = self._step(it)
+                    losses = step_losses or losses
+                    self._maybe_densify(it)
+                    self.state.iteration = it + 1
+                    self.state.elapsed_s += time.perf_counter() - started
+                    done = self.state.iteration
+                    if done % config.eval_every == 0 or done == config.iterations:
+                        self._evaluate(done, losses)
+                        self._maybe_stop_early()
+                    if done % config.checkpoint_every == 0:
+                        self.save_checkpoint()
+                    rate = self.state.iteration / max(self.state.elapsed_s, 1e-9)
+                    bar.update(
+                        task, completed=done, info=_progress_text(losses, self.model.n_triangles, rate)
+                    )
+            except KeyboardInterrupt:
+                self.save_checkpoint()
+                raise TrainingInterruptedError(
+                    f"interrupted at iteration {self.state.iteration}; checkpoint saved in "
+                    f"{layout.checkpoint_path(self.run_dir)} — rerun with --resume to continue"
+                ) from None
+        self.save_checkpoint()
+        return self._finish()
+
+    def _maybe_stop_early(self) -> None:
+        if self.state.evals_without_gain < self.config.patience:
+            return
+        saved = self.config.iterations - self.state.iteration
+        self.state.stopped_early = True
+        self.state.skips.append(
+            f"stopped early at iteration {self.state.iteration}: test PSNR gained less than "
+            f"{self.config.min_improvement_db} dB over {self.config.patience} evaluations "
+            f"({saved} iterations, {saved / self.config.iterations:.0%} of the budget, saved)"
+        )
+        self.log(self.state.skips[-1])
+
+    def _finish(self) -> TrainResult:
+        save_model(self.model, layout.model_path(self.run_dir))
+        test = evaluate_views(self.model, self.test_views, self.scene.camera) if self.test_views else {}
+        write_renders(self.model, self.test_views, self.scene.camera, layout.renders_dir(self.run_dir))
+        export = _export(self.model, self.train_views, self.scene.camera, self.run_dir)
+        c, s = self.config, self.state
+        result = TrainResult(
+            str(self.run_dir), c.method, c.preset, c.device, s.iteration, round(s.elapsed_s, 3),
+            self.model.n_triangles, s.stopped_early, s.rejected_total, test, s.skips, s.densification, export,
+        )  # fmt: skip
+        layout.summary_path(self.run_dir).write_text(json.dumps(asdict(result), indent=1))
+        return result
+
+
+def _progress_text(losses: dict[str, float], n_triangles: int, rate: float) -> str:
+    terms = " ".join(f"{k} {losses[k]:.4f}" for k in ("total", "l1", "depth", "normal") if k in losses)
+    return f"{terms} {n_triangles} tri {rate:.1f} it/s"
+
+
+@torch.no_grad()
+def seen_triangles(model: TriangleModel, views: list[View], camera) -> torch.Tensor:
+    """``(F,)`` bool: the triangle dominates at least one pixel of some view."""
+    seen = torch.zeros(model.n_triangles, dtype=torch.bool)
+    for view in views:
+        dominant = model.render(camera, view.T_cam_world).dominant
+        seen[dominant[dominant >= 0].cpu()] = True
+    return seen
+
+
+def _export(model: TriangleModel, views: list[View], camera, run_dir: Path) -> dict:
+    from splat.export import export_mesh
+
+    result = export_mesh(model, run_dir, seen=seen_triangles(model, views, camera))
+    return json.loads(json.dumps(asdict(result), default=str))
+
+
+def train(
+    scene_dir: str | Path,
+    run_dir: str | Path,
+    config: TrainConfig,
+    *,
+    resume: bool = False,
+    progress: bool = True,
+    log: Callable = console.print,
+) -> TrainResult:
+    """Train ``config`` on the scene folder ``scene_dir`` into ``run_dir`` (``resume``: continue
+    from ``run_dir``'s last checkpoint, bit for bit on the CPU)."""
+    trainer = Trainer(scene_dir, run_dir, config, log)
+    trainer.prepare(resume)
+    return trainer.run(progress)

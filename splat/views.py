@@ -1,0 +1,69 @@
+"""Training views: a scene's keyframes as tensors, and the keyframes that add no new view."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from slam_bridge.scene import Keyframe, Scene
+
+
+@dataclass
+class View:
+    """One keyframe ready for rendering (``H, W`` image size).
+
+    Attributes:
+        name: keyframe name.
+        T_cam_world: ``(4, 4)`` world-to-camera transform.
+        image: ``(H, W, 3)`` RGB in [0, 1].
+        depth: ``(H, W)`` LiDAR depth (0 = no return), or None when the keyframe has none.
+        normal: ``(H, W, 3)`` normal prior (0 = none), or None when the keyframe has none.
+    """
+
+    name: str
+    T_cam_world: Tensor
+    image: Tensor
+    depth: Tensor | None
+    normal: Tensor | None
+
+
+def load_views(
+    scene: Scene, keyframes: list[Keyframe], dtype: torch.dtype = torch.float32, device: str = "cpu"
+) -> list[View]:
+    """Load ``keyframes`` of ``scene`` as :class:`View` tensors on ``device``."""
+    views = []
+    for k in keyframes:
+        depth = scene.depth(k)
+        normal = scene.normals(k)
+        views.append(
+            View(
+                k.name,
+                torch.as_tensor(np.linalg.inv(k.T_world_cam), dtype=dtype, device=device),
+                torch.as_tensor(scene.image(k) / 255.0, dtype=dtype, device=device),
+                torch.as_tensor(depth, dtype=dtype, device=device) if (depth > 0).any() else None,
+                torch.as_tensor(normal, dtype=dtype, device=device) if np.abs(normal).sum() > 0 else None,
+            )
+        )
+    return views
+
+
+def redundant_keyframes(keyframes: list[Keyframe], motion_m: float, turn_deg: float) -> list[int]:
+    """Indices of keyframes that add no new view: within ``motion_m`` and ``turn_deg`` of an
+    earlier kept keyframe (a robot standing still, typically at the start and the end)."""
+    kept: list[np.ndarray] = []
+    redundant = []
+    cos_turn = np.cos(np.radians(turn_deg))
+    for i, k in enumerate(keyframes):
+        T = k.T_world_cam
+        for K in kept:
+            moved = np.linalg.norm(T[:3, 3] - K[:3, 3])
+            cos_angle = (np.trace(K[:3, :3].T @ T[:3, :3]) - 1) / 2
+            if moved <= motion_m and cos_angle >= cos_turn:
+                redundant.append(i)
+                break
+        else:
+            kept.append(T)
+    return redundant

@@ -1,0 +1,241 @@
+"""Training: initialisation, densification bookkeeping, variance statistics, guards, resume."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from training_scene import CAMERA, camera_poses, corner_mesh, write_training_scene
+
+from splat.config import make_config
+from splat.densify import DensifyStats, _cloned, _subdivided, densify
+from splat.init_mesh import decouple_and_scale, ground_fill
+from splat.model import TriangleModel, load_model
+from splat.param_rows import make_optimizer, replace_rows
+from splat.trainer import Trainer, TrainingDivergedError, train
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory):
+    return write_training_scene(tmp_path_factory.mktemp("scene"))
+
+
+def _tiny_config(**overrides):
+    values = dict(
+        iterations=60, densify_every=20, densify_until=0.5, eval_every=20, checkpoint_every=20,
+        init_max_triangles=500, ground_fill=False, drop_redundant_keyframes=False, growth_rate=0.2,
+    )  # fmt: skip
+    values.update(overrides)
+    return make_config("ours", "default", **values)
+
+
+def _model(n: int = 6, seed: int = 0) -> TriangleModel:
+    g = torch.Generator().manual_seed(seed)
+    triangles = torch.rand(n, 3, 3, generator=g) + torch.tensor([0.0, 0.0, 3.0])
+    return TriangleModel.from_triangles(triangles, torch.rand(n, 3, 3, generator=g) * 0.8 + 0.1, 0.6)
+
+
+def test_decouple_and_scale_keeps_centroids_and_scales_areas():
+    mesh = corner_mesh(4)
+    triangles = decouple_and_scale(mesh.vertices, mesh.faces, 2.0)
+    original = np.asarray(mesh.vertices)[np.asarray(mesh.faces)]
+    np.testing.assert_allclose(triangles.mean(axis=1), original.mean(axis=1), atol=1e-12)
+    area = lambda t: 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)  # noqa: E731
+    np.testing.assert_allclose(area(triangles), 4.0 * area(original), rtol=1e-12)
+
+
+def test_replace_rows_keeps_adam_state_with_its_rows():
+    model = _model(5)
+    optimizer = make_optimizer(model, {"vertices": 0.01, "colors": 0.01, "opacity": 0.01})
+    for p in model.params.values():
+        p.grad = torch.arange(p.numel(), dtype=p.dtype).view_as(p) + 1.0
+    optimizer.step()
+    before = {n: optimizer.state[p]["exp_avg"].clone() for n, p in model.params.items()}
+    values = {n: p.detach().clone() for n, p in model.params.items()}
+    keep = torch.tensor([True, False, True, True, False])
+    added = {n: v[:2] * 0 + 7 for n, v in values.items()}
+    replace_rows(model, optimizer, keep, added)
+    assert model.n_triangles == 5
+    for name, p in model.params.items():
+        assert p.is_leaf and p.requires_grad
+        assert (
+            optimizer.param_groups[[g["name"] for g in optimizer.param_groups].index(name)]["params"][0] is p
+        )
+        state = optimizer.state[p]
+        torch.testing.assert_close(p.detach()[:3], values[name][keep])
+        torch.testing.assert_close(state["exp_avg"][:3], before[name][keep])
+        assert not state["exp_avg"][3:].any() and not state["exp_avg_sq"][3:].any()
+    optimizer.step()  # the optimiser still works on the new tensors
+
+
+def _area(t: torch.Tensor) -> torch.Tensor:
+    """Areas of triangles ``(..., 3, 3)``."""
+    return 0.5 * torch.linalg.cross(t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]).norm(dim=-1)
+
+
+def test_clone_preserves_transmittance_and_subdivision_covers_the_parent():
+    model = _model(4)
+    rows = torch.tensor([1, 3])
+    clones = _cloned(model, rows)
+    o = torch.sigmoid(model.params["opacity"].detach()[rows])
+    o_clone = torch.sigmoid(clones["opacity"][:2])
+    torch.testing.assert_close(1 - (1 - o_clone) ** 2, o, rtol=1e-4, atol=1e-5)
+    torch.testing.assert_close(clones["vertices"][:2], clones["vertices"][2:])
+
+    children = _subdivided(model, rows)["vertices"].view(4, 2, 3, 3)  # child-major, then parent
+    parents = model.params["vertices"].detach()[rows]
+    torch.testing.assert_close(_area(children).sum(0), _area(parents), rtol=1e-5, atol=1e-7)
+    torch.testing.assert_close(children.mean(dim=(0, 2)), parents.mean(dim=1), rtol=1e-5, atol=1e-6)
+
+
+def test_variance_statistics_match_a_direct_computation():
+    model = _model(8, seed=2)
+    g = torch.Generator().manual_seed(4)
+    target = 3.0 + torch.rand(CAMERA.height, CAMERA.width, generator=g)
+    target[torch.rand(target.shape, generator=g) < 0.3] = 0  # pixels without LiDAR
+    out = model.render(CAMERA, torch.eye(4), target_depth=target)
+    stats = DensifyStats.empty(model.n_triangles, torch.float32, torch.device("cpu"))
+    stats.add(out)
+    stats.add(out)  # accumulating a view twice leaves the variance unchanged
+    dominant, depth = out.dominant.numpy(), out.depth.detach().numpy()
+    for face in range(model.n_triangles):
+        mask = (dominant == face) & (target.numpy() > 0)
+        expected = np.var(target.numpy()[mask] - depth[mask]) if mask.any() else 0.0
+        assert int(stats.depth.count[face]) == 2 * mask.sum()
+        assert float(stats.depth.variance()[face]) == pytest.approx(expected, rel=1e-3, abs=1e-6)
+
+
+def test_densification_with_all_zero_weights_is_skipped_not_a_crash():
+    model = _model(6)
+    optimizer = make_optimizer(model, {"vertices": 0.01, "colors": 0.01, "opacity": 0.01})
+    stats = DensifyStats.empty(6, torch.float32, torch.device("cpu"))
+    stats.max_weight[:] = 1.0  # every triangle seen, no error at all
+    report = densify(model, optimizer, stats, _tiny_config(), torch.Generator().manual_seed(0), 20)
+    assert report.skipped and "positive sampling weight" in report.skipped
+    assert model.n_triangles == 6 and report.cloned == report.subdivided == 0
+
+
+def test_variance_sampling_clones_depth_errors_and_subdivides_normal_errors():
+    model = _model(4)
+    optimizer = make_optimizer(model, {"vertices": 0.01, "colors": 0.01, "opacity": 0.01})
+    stats = DensifyStats.empty(4, torch.float32, torch.device("cpu"))
+    stats.max_weight[:] = 1.0
+    stats.depth.count[:] = 100
+    stats.depth.sum_sq[0] = 100 * 0.2**2  # triangle 0: 20 cm depth spread → clone
+    stats.normal.count[:] = 100
+    stats.normal.sum_sq[1] = 100 * 0.5**2  # triangle 1: normal spread → subdivide
+    config = _tiny_config(growth_rate=2.0)
+    report = densify(model, optimizer, stats, config, torch.Generator().manual_seed(0), 20)
+    assert (report.cloned, report.subdivided) == (1, 1)
+    assert model.n_triangles == 2 + 2 + 4
+
+
+def test_ground_fill_covers_a_hole_in_the_floor():
+    mesh = corner_mesh(12)
+    centroids = mesh.triangles_center
+    hole = (
+        (centroids[:, 2] < 1e-6)
+        & (np.abs(centroids[:, 0]) < 1.0)
+        & (centroids[:, 1] > 0.3)
+        & (centroids[:, 1] < 2.0)
+    )
+    holed = trimesh.Trimesh(mesh.vertices, mesh.faces[~hole], process=False)
+    fill = ground_fill(holed, CAMERA, camera_poses(6), cell_m=0.2)
+    assert fill.plane is not None
+    np.testing.assert_allclose(fill.plane, [0, 0, 1, 0], atol=1e-6)
+    assert len(fill.triangles) > 0
+    assert np.abs(fill.triangles[..., 2]).max() < 1e-9
+    centres = fill.triangles.mean(axis=1)
+    on_mesh = (np.abs(centres[:, 0]) < 2.0) & (centres[:, 1] > -1.0) & (centres[:, 1] < 3.0)
+    in_hole = (np.abs(centres[:, 0]) < 1.0 + 0.2) & (centres[:, 1] > 0.3 - 0.2) & (centres[:, 1] < 2.0 + 0.2)
+    assert not (on_mesh & ~in_hole).any()  # no cell where the mesh already has floor
+    hole_area = 2.0 * 1.7
+    filled = 0.5 * np.linalg.norm(np.cross(fill.triangles[:, 1] - fill.triangles[:, 0],
+                                           fill.triangles[:, 2] - fill.triangles[:, 0]), axis=1)  # fmt: skip
+    assert filled[in_hole].sum() > 0.6 * hole_area  # the cameras see the hole but for its nearest strip
+    whole = ground_fill(mesh, CAMERA, camera_poses(6), cell_m=0.2)
+    centres = whole.triangles.mean(axis=1)  # only the floor beyond the mesh's edges is added
+    assert not ((np.abs(centres[:, 0]) < 1.9) & (centres[:, 1] > -0.9) & (centres[:, 1] < 2.9)).any()
+
+
+def test_training_improves_the_view_and_writes_the_run_folder(scene_dir, tmp_path):
+    run = tmp_path / "run"
+    result = train(scene_dir, run, _tiny_config(iterations=120), progress=False, log=lambda *_: None)
+    for name in (
+        "config.yaml",
+        "run.json",
+        "metrics.jsonl",
+        "model.pt",
+        "summary.json",
+        "mesh.ply",
+        "collision.ply",
+    ):
+        assert (run / name).is_file(), name
+    lines = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    assert [line["iteration"] for line in lines] == [20, 40, 60, 80, 100, 120]
+    # The LiDAR term pulls the 10 cm-coarse start onto the surfaces.
+    assert lines[-1]["loss"]["depth"] < 0.5 * lines[0]["loss"]["depth"]
+    assert result.test["test_depth_l1_m"] < 0.05
+    assert load_model(run / "model.pt").n_triangles == result.n_triangles
+    assert result.densification and result.rejected_steps == 0
+
+
+def test_resume_after_a_kill_reaches_identical_parameters(scene_dir, tmp_path, monkeypatch):
+    config = _tiny_config()
+    whole = train(scene_dir, tmp_path / "whole", config, progress=False, log=lambda *_: None)
+
+    class KilledError(Exception):
+        pass
+
+    original = Trainer._step
+    kill_at = 47  # after the checkpoint at 40, mid-way between densifications
+
+    def dying_step(self, it):
+        if it == kill_at:
+            raise KilledError
+        return original(self, it)
+
+    monkeypatch.setattr(Trainer, "_step", dying_step)
+    with pytest.raises(KilledError):
+        train(scene_dir, tmp_path / "killed", config, progress=False, log=lambda *_: None)
+    monkeypatch.setattr(Trainer, "_step", original)
+    resumed = train(scene_dir, tmp_path / "killed", config, resume=True, progress=False, log=lambda *_: None)
+    a, b = load_model(tmp_path / "whole" / "model.pt"), load_model(tmp_path / "killed" / "model.pt")
+    for name in a.params:
+        assert torch.equal(a.params[name], b.params[name]), name
+    assert resumed.test == whole.test
+    lines = (tmp_path / "killed" / "metrics.jsonl").read_text().splitlines()
+    assert [json.loads(line)["iteration"] for line in lines] == [20, 40, 60]
+
+
+def test_non_finite_steps_are_rejected_and_persistent_ones_stop_training(scene_dir, tmp_path, monkeypatch):
+    import splat.trainer as trainer_module
+
+    real_loss = trainer_module.training_loss
+    calls = {"n": 0}
+
+    def sometimes_nan(*args, **kwargs):
+        terms = real_loss(*args, **kwargs)
+        calls["n"] += 1
+        if calls["n"] in (3, 4):
+            terms.total = terms.total * float("nan")
+        return terms
+
+    monkeypatch.setattr(trainer_module, "training_loss", sometimes_nan)
+    result = train(
+        scene_dir, tmp_path / "a", _tiny_config(iterations=10), progress=False, log=lambda *_: None
+    )
+    assert result.rejected_steps == 2
+
+    def always_nan(*args, **kwargs):
+        terms = real_loss(*args, **kwargs)
+        terms.total = terms.total * float("nan")
+        return terms
+
+    monkeypatch.setattr(trainer_module, "training_loss", always_nan)
+    with pytest.raises(TrainingDivergedError, match="non-finite"):
+        train(scene_dir, tmp_path / "b", _tiny_config(iterations=40, max_rejected_steps=5), progress=False,
+              log=lambda *_: None)  # fmt: skip
