@@ -70,6 +70,38 @@ def frustum_mask(
     return inside
 
 
+def visible_mask(
+    points: np.ndarray,
+    mesh: trimesh.Trimesh,
+    poses_world_cam: np.ndarray,
+    camera: CameraModel,
+    tolerance_m: float = 0.02,
+    max_range_m: float = np.inf,
+) -> np.ndarray:
+    """Boolean ``(N,)``: which surface points ``(N, 3)`` of ``mesh`` at least one camera sees —
+    inside its frustum and not hidden behind another part of ``mesh`` (a ray cast from the camera
+    reaches within ``tolerance_m`` of the point)."""
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
+        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
+    )
+    points = np.asarray(points, dtype=np.float64)
+    seen = np.zeros(len(points), dtype=bool)
+    for pose in np.asarray(poses_world_cam):
+        candidates = np.flatnonzero(~seen & frustum_mask(points, pose[None], camera, far=max_range_m))
+        if len(candidates) == 0:
+            continue
+        offset = points[candidates] - pose[:3, 3]
+        distance = np.linalg.norm(offset, axis=1)
+        rays = np.hstack([np.broadcast_to(pose[:3, 3], offset.shape), offset / distance[:, None]])
+        t_hit = scene.cast_rays(o3d.core.Tensor(rays.astype(np.float32)))["t_hit"].numpy()
+        seen[candidates[t_hit >= distance - tolerance_m]] = True
+    return seen
+
+
 def compare_point_sets(
     reconstructed: np.ndarray, ground_truth: np.ndarray, threshold_m: float
 ) -> GeometricMetrics:
