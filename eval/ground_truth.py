@@ -10,11 +10,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import trimesh
 
-from eval.geometry import DEFAULT_SAMPLES, GeometricMetrics, compare_point_sets, frustum_mask, sample_surface
+from eval.geometry import (
+    DEFAULT_SAMPLES,
+    GeometricMetrics,
+    compare_point_sets,
+    frustum_mask,
+    sample_surface,
+    visible_mask,
+)
 from eval.trajectory_metrics import pose_alignment
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
@@ -83,13 +91,22 @@ def compare_with_ground_truth(
     threshold_m: float = 0.1,
     samples: int = DEFAULT_SAMPLES,
     far_m: float = np.inf,
+    gt_cull: Literal["frustum", "visible"] = "frustum",
 ) -> GeometricMetrics:
     """Geometric metrics of a mesh in the scene's world frame against the ground truth, both
     culled to the union of the training cameras' frusta (the culled-mesh protocol of the Replica
-    evaluations): surfaces no training camera saw count neither for nor against a method."""
+    evaluations): surfaces no training camera saw count neither for nor against a method.
+
+    ``gt_cull="visible"`` also drops ground truth hidden from every training camera behind other
+    ground truth (:func:`~eval.geometry.visible_mask`): the back of a box is in the frusta but no
+    image shows it.
+    """
     poses = np.stack([k.T_world_cam for k in scene.split("train")])
     rec_points = sample_surface(reconstructed, samples, seed=0)
     gt_points = sample_surface(truth.mesh, samples, seed=1)
     rec_points = rec_points[frustum_mask(rec_points, poses, scene.camera, far=far_m)]
-    gt_points = gt_points[frustum_mask(gt_points, poses, scene.camera, far=far_m)]
+    if gt_cull == "visible":
+        gt_points = gt_points[visible_mask(gt_points, truth.mesh, poses, scene.camera, max_range_m=far_m)]
+    else:
+        gt_points = gt_points[frustum_mask(gt_points, poses, scene.camera, far=far_m)]
     return compare_point_sets(rec_points, gt_points, threshold_m)

@@ -293,7 +293,7 @@ class Trainer:
         if self.state.final_pruned or it < self.config.floor_rise_start * self.config.iterations:
             return
         self.state.final_pruned = True
-        keep = self.model.triangle_opacity().detach() >= 0.5
+        keep = self.model.triangle_opacity().detach() >= self.config.final_prune_opacity
         if not bool(keep.all()):
             empty = {k: v[:0].detach() for k, v in self.model.params.items()}
             replace_rows(self.model, self.optimizer, keep, empty)

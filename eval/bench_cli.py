@@ -1,0 +1,80 @@
+"""``lts bench train|ablation|noise``: training benchmarks (mounted on the bench group by eval/cli.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from rig.cli_support import console, emit_json
+
+SCENE_OPTION = typer.Option(None, "--scene", help="Prepared scene folder (default: a new virtual-rig room).")
+GT_OPTION = typer.Option(None, "--gt", help="Virtual-rig ground-truth folder of --scene's session.")
+OUT_OPTION = typer.Option(
+    Path("bench_out"), "--out", "-o", help="Where runs, the JSON table and the plot go."
+)
+FULL_OPTION = typer.Option(
+    False, "--full", help="Simulate the full 20 s, 320x240 room instead of the quick one."
+)
+JSON_OPTION = typer.Option(False, "--json", help="Print one JSON object on stdout.")
+
+
+def _log(message: str) -> None:
+    console.print(message, highlight=False)
+
+
+def _finish(result: dict, json_out: bool) -> None:
+    console.print(f"plot: {result['plot']}", highlight=False)
+    if json_out:
+        emit_json(result)
+
+
+def bench_train_command(
+    iterations: list[int] = typer.Option([300, 600, 1200], "--iterations", "-n", help="Iteration budgets."),
+    triangles: list[int] = typer.Option(
+        [4000, 12000], "--triangles", "-t", help="Warm-start triangle budgets."
+    ),
+    scene: Path | None = SCENE_OPTION,
+    gt: Path | None = GT_OPTION,
+    out: Path = OUT_OPTION,
+    full: bool = FULL_OPTION,
+    json_out: bool = JSON_OPTION,
+) -> None:
+    """Run time against error: sweep iteration and triangle budgets; the Pareto front (time vs Chamfer)."""
+    from eval.bench_training import bench_train, resolve_scene
+
+    bench = resolve_scene(scene, gt, out, not full, _log)
+    _finish(bench_train(bench, out, iterations, triangles, _log), json_out)
+
+
+def bench_ablation_command(
+    preset: str = typer.Option("default", help="Training preset for every method."),
+    scene: Path | None = SCENE_OPTION,
+    gt: Path | None = GT_OPTION,
+    out: Path = OUT_OPTION,
+    full: bool = FULL_OPTION,
+    json_out: bool = JSON_OPTION,
+) -> None:
+    """Ours vs the photometric-only TS+ baseline vs the ablations on one scene (Table III analogue)."""
+    from eval.bench_training import bench_ablation, resolve_scene
+
+    bench = resolve_scene(scene, gt, out, not full, _log)
+    _finish(bench_ablation(bench, out, preset, _log), json_out)
+
+
+def bench_noise_command(
+    noise: list[float] = typer.Option(
+        [0.0, 0.05, 0.1, 0.2, 0.3], "--noise", help="Vertex noise σ in metres."
+    ),
+    preset: str = typer.Option("default", help="Training preset."),
+    scene: Path | None = SCENE_OPTION,
+    gt: Path | None = GT_OPTION,
+    out: Path = OUT_OPTION,
+    full: bool = FULL_OPTION,
+    json_out: bool = JSON_OPTION,
+) -> None:
+    """Quality against Gaussian noise on the warm-start mesh vertices (Fig. 6 analogue)."""
+    from eval.bench_training import bench_noise, resolve_scene
+
+    bench = resolve_scene(scene, gt, out, not full, _log)
+    _finish(bench_noise(bench, out, noise, preset, _log), json_out)

@@ -1,0 +1,270 @@
+"""Benchmarks of training: run time against error, the ablation table, the warm-start noise curve.
+
+Each trains on one virtual-rig scene (made here with ``lts sim`` → ``lts slam run`` →
+``lts prepare``, or given), scores every run against the ground truth with the culled-mesh
+protocol (:mod:`eval.ground_truth`), writes a JSON table and a PNG plot, and returns the table.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from eval.ground_truth import compare_with_ground_truth, load_ground_truth
+from rig.errors import InputError
+from rig.mesh_io import load_mesh
+from slam_bridge.scene import load_scene
+
+#: The geometric columns of a row (frustum-culled ground truth, then visible-only ground truth).
+GEOMETRY_KEYS = ("fscore", "precision", "recall", "chamfer_m")
+
+
+@dataclass(frozen=True)
+class BenchScene:
+    """A prepared scene and the virtual-rig ground truth of its session."""
+
+    scene_dir: Path
+    gt_dir: Path
+
+
+def _lts(*args: str) -> None:
+    """Run one ``lts`` command of this installation (errors surface with the command's output)."""
+    command = [str(Path(sys.executable).with_name("lts")), *args]
+    done = subprocess.run(command, capture_output=True, text=True)
+    if done.returncode != 0:
+        tail = (done.stderr or done.stdout).strip().splitlines()[-3:]
+        raise RuntimeError(f"{' '.join(command[1:3])} failed: {' | '.join(tail)}")
+
+
+def virtual_scene(out: Path, quick: bool = True, seed: int = 0, log: Callable = print) -> BenchScene:
+    """Simulate a ``room`` session, map it with the fallback mapper and prepare its scene under
+    ``out`` (reused when already there). ``quick``: the simulator's 3 s, 160×120 run."""
+    scene_dir, gt_dir = out / "scene", out / "sim" / "ground_truth"
+    if (scene_dir / "scene.json").is_file() and (gt_dir / "mesh.ply").is_file():
+        return BenchScene(scene_dir, gt_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    calib = str(gt_dir / "calib.yaml")
+    session = str(out / "sim" / "session.mcap")
+    log("bench scene: simulating the room" + (" (quick)" if quick else ""))
+    _lts("sim", str(out / "sim"), "--preset", "room", "--seed", str(seed), *(["--quick"] if quick else []))
+    log("bench scene: fallback mapper")
+    _lts("slam", "run", session, "--calib", calib, "--out", str(out / "slam"))
+    log("bench scene: keyframes (with SfM points for the TS+ baseline)")
+    _lts("prepare", session, "--calib", calib, "--slam", str(out / "slam"), "--out", str(scene_dir),
+         "--sparse-points")  # fmt: skip
+    return BenchScene(scene_dir, gt_dir)
+
+
+def train_and_score(bench: BenchScene, config, run_dir: Path, threshold_m: float = 0.1) -> dict[str, Any]:
+    """Train ``config`` into ``run_dir`` and score it: wall time, test PSNR/SSIM, geometry."""
+    from splat.trainer import train
+
+    started = time.perf_counter()
+    result = train(bench.scene_dir, run_dir, config, progress=False, log=lambda *_: None)
+    wall = time.perf_counter() - started
+    scene = load_scene(bench.scene_dir)
+    truth = load_ground_truth(scene, bench.gt_dir)
+    mesh = load_mesh(run_dir / "mesh.ply")
+    frustum = compare_with_ground_truth(mesh, scene, truth, threshold_m)
+    visible = compare_with_ground_truth(mesh, scene, truth, threshold_m, gt_cull="visible")
+    return {
+        "method": config.method,
+        "preset": config.preset,
+        "iterations": result.iterations,
+        "init_max_triangles": config.init_max_triangles,
+        "max_triangles": config.max_triangles,
+        "init_noise_m": config.init_noise_m,
+        "train_seconds": result.train_seconds,
+        "wall_seconds": round(wall, 2),
+        "n_triangles": result.n_triangles,
+        "psnr": result.test.get("test_psnr"),
+        "ssim": result.test.get("test_ssim"),
+        "depth_l1_m": result.test.get("test_depth_l1_m"),
+        **{k: getattr(frustum, k) for k in GEOMETRY_KEYS},
+        **{f"{k}_visible": getattr(visible, k) for k in GEOMETRY_KEYS},
+        "threshold_m": threshold_m,
+    }
+
+
+def pareto_front(rows: list[dict], cost: str = "train_seconds", error: str = "chamfer_m") -> list[int]:
+    """Indices of the rows no other row beats on both ``cost`` and ``error`` (lower is better),
+    in increasing cost."""
+    order = sorted(range(len(rows)), key=lambda i: (rows[i][cost], rows[i][error]))
+    front, best = [], np.inf
+    for i in order:
+        if rows[i][error] < best:
+            front.append(i)
+            best = rows[i][error]
+    return front
+
+
+def _run_all(
+    bench: BenchScene, configs: Iterable, out: Path, name: Callable, log: Callable
+) -> list[dict[str, Any]]:
+    rows = []
+    for config in configs:
+        run_dir = out / "runs" / name(config)
+        if run_dir.exists():
+            import shutil
+
+            shutil.rmtree(run_dir)
+        log(f"training {name(config)} ...")
+        rows.append(train_and_score(bench, config, run_dir))
+        row = rows[-1]
+        log(f"  {row['train_seconds']:.0f} s, PSNR {row['psnr']:.2f}, F {row['fscore']:.3f}, "
+            f"Chamfer {row['chamfer_m']:.3f} m")  # fmt: skip
+    return rows
+
+
+def _write(out: Path, name: str, result: dict) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{name}.json").write_text(json.dumps(result, indent=1))
+
+
+def bench_train(
+    bench: BenchScene, out: Path, iterations: list[int], init_triangles: list[int], log: Callable = print
+) -> dict[str, Any]:
+    """Sweep iteration budgets × warm-start triangle budgets of ``ours``; the Pareto front of
+    training time against Chamfer error (and a plot ``train_pareto.png``)."""
+    from splat.config import make_config
+
+    configs = [
+        make_config(
+            "ours",
+            "default",
+            iterations=n,
+            init_max_triangles=t,
+            max_triangles=max(3 * t, 1000),
+            eval_every=max(n // 4, 1),
+            densify_every=max(n // 6, 1),
+        )
+        for n in iterations
+        for t in init_triangles
+    ]
+    rows = _run_all(bench, configs, out, lambda c: f"it{c.iterations}_tri{c.init_max_triangles}", log)
+    front = pareto_front(rows)
+    result = {
+        "scene": str(bench.scene_dir),
+        "rows": rows,
+        "pareto": front,
+        "plot": str(out / "train_pareto.png"),
+    }
+    _plot_pareto(rows, front, out / "train_pareto.png")
+    _write(out, "bench_train", result)
+    return result
+
+
+def bench_ablation(
+    bench: BenchScene, out: Path, preset: str = "default", log: Callable = print
+) -> dict[str, Any]:
+    """Every method on one scene: ours, the TS+ baseline and the ablations (Table III analogue)."""
+    from splat.config import METHODS, make_config
+
+    rows = _run_all(bench, [make_config(m, preset) for m in METHODS], out, lambda c: c.method, log)
+    result = {
+        "scene": str(bench.scene_dir),
+        "preset": preset,
+        "rows": rows,
+        "plot": str(out / "ablation.png"),
+    }
+    _plot_bars(rows, out / "ablation.png")
+    _write(out, "bench_ablation", result)
+    return result
+
+
+def bench_noise(
+    bench: BenchScene, out: Path, noise_m: list[float], preset: str = "default", log: Callable = print
+) -> dict[str, Any]:
+    """``ours`` with Gaussian noise on the warm-start vertices (the Fig. 6 analogue)."""
+    from splat.config import make_config
+
+    configs = [make_config("ours", preset, init_noise_m=n) for n in noise_m]
+    rows = _run_all(bench, configs, out, lambda c: f"noise_{c.init_noise_m:g}", log)
+    result = {"scene": str(bench.scene_dir), "preset": preset, "rows": rows, "plot": str(out / "noise.png")}
+    _plot_noise(rows, out / "noise.png")
+    _write(out, "bench_noise", result)
+    return result
+
+
+def _figure():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _plot_pareto(rows: list[dict], front: list[int], path: Path) -> None:
+    plt = _figure()
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
+    ax.scatter([r["train_seconds"] for r in rows], [r["chamfer_m"] for r in rows], c="#888", label="runs")
+    best = [rows[i] for i in front]
+    ax.plot(
+        [r["train_seconds"] for r in best],
+        [r["chamfer_m"] for r in best],
+        "o-",
+        c="#c0392b",
+        label="Pareto front",
+    )
+    for r in rows:
+        label = f"{r['iterations']} it / {r['init_max_triangles'] // 1000}k"
+        ax.annotate(
+            label, (r["train_seconds"], r["chamfer_m"]), fontsize=7, textcoords="offset points", xytext=(4, 4)
+        )
+    ax.set(xlabel="training time (s)", ylabel="Chamfer-L1 (m)", title="Run time against error")
+    ax.legend()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def _plot_bars(rows: list[dict], path: Path) -> None:
+    plt = _figure()
+    fig, axes = plt.subplots(1, 3, figsize=(11, 3.5), dpi=120)
+    names = [r["method"] for r in rows]
+    panels = (("psnr", "PSNR (dB)"), ("fscore", "F-score @10 cm"), ("chamfer_m", "Chamfer (m)"))
+    for ax, (key, label) in zip(axes, panels, strict=True):
+        ax.bar(names, [r[key] for r in rows], color=["#c0392b" if n == "ours" else "#7f8c8d" for n in names])
+        ax.set_title(label)
+        ax.tick_params(axis="x", rotation=45)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def _plot_noise(rows: list[dict], path: Path) -> None:
+    plt = _figure()
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
+    noise = [100 * r["init_noise_m"] for r in rows]
+    ax.plot(noise, [r["fscore"] for r in rows], "o-", c="#c0392b", label="F-score @10 cm")
+    ax.set(xlabel="warm-start vertex noise σ (cm)", ylabel="F-score", ylim=(0, 1.02))
+    twin = ax.twinx()
+    twin.plot(noise, [r["psnr"] for r in rows], "s--", c="#2c3e50", label="PSNR")
+    twin.set_ylabel("test PSNR (dB)")
+    fig.legend(loc="lower left")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def resolve_scene(scene: Path | None, gt: Path | None, out: Path, quick: bool, log: Callable) -> BenchScene:
+    """The given scene and ground truth, or a fresh virtual-rig scene under ``out/scene``."""
+    if scene is None and gt is None:
+        return virtual_scene(out / "scene", quick=quick, log=log)
+    if scene is None or gt is None:
+        raise InputError(
+            "give both --scene and --gt, or neither (a virtual-rig scene is made)", field="scene"
+        )
+    return BenchScene(scene, gt)
