@@ -345,7 +345,9 @@ def refine_extrinsic(
     mi_init = -_mi_cost(np.zeros(6), T_init, views, fine)
     mi_final = -_mi_cost(x_best, T_init, views, fine)
     if mi_final <= mi_init:
-        reasons.append("mutual information did not improve on the initial guess")
+        # A result the objective rates below the guess is no refinement: return the guess.
+        reasons.append("mutual information did not improve on the initial guess: kept the guess")
+        x_best, mi_final = np.zeros(6), mi_init
     if rot_std > MAX_ROT_STD_DEG:
         reasons.append(
             f"rotation varies by ±{rot_std:.2f}° between halves of the data (limit {MAX_ROT_STD_DEG}°)"
