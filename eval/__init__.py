@@ -1,5 +1,5 @@
-"""eval: photometric and geometric metrics, leaned-view holes, physics collision test (and, to
-come, reports and benchmarks).
+"""eval: photometric and geometric metrics, leaned-view holes, physics collision test, the
+evaluation of a training run and its HTML report (and, to come, benchmarks).
 
 The offline ``lts`` command line is mounted in :mod:`eval.cli`. Names are imported on first use
 (PEP 562) so that ``lts --help``, which imports this package, does not load torch.
@@ -22,10 +22,16 @@ _EXPORTS = {
     "HoleResult": "eval.leaned_views",
     "leaned_poses": "eval.leaned_views",
     "mesh_hole_fraction": "eval.leaned_views",
+    "hit_mask": "eval.leaned_views",
+    "raycaster": "eval.leaned_views",
     "CollisionComparison": "eval.physics",
     "DropResult": "eval.physics",
     "compare_drops": "eval.physics",
     "drop_probes": "eval.physics",
     "footprint_grid": "eval.physics",
+    "RunEvaluation": "eval.run_eval",
+    "evaluate_run": "eval.run_eval",
+    "write_eval_json": "eval.run_eval",
+    "write_report": "eval.report",
 }
 __all__, __getattr__ = lazy_exports(__name__, _EXPORTS)

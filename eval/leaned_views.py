@@ -26,7 +26,8 @@ def leaned_poses(poses_world_cam: np.ndarray, yaw_deg: float = 10.0, shift_m: fl
     return np.stack([pose @ offset for pose in np.asarray(poses_world_cam) for offset in offsets])
 
 
-def _raycaster(mesh: trimesh.Trimesh):
+def raycaster(mesh: trimesh.Trimesh):
+    """An open3d ``RaycastingScene`` holding ``mesh`` (for :func:`hit_mask`)."""
     import open3d as o3d
 
     scene = o3d.t.geometry.RaycastingScene()
@@ -37,7 +38,9 @@ def _raycaster(mesh: trimesh.Trimesh):
     return scene
 
 
-def _hit_mask(scene, camera: CameraModel, T_world_cam: np.ndarray, max_range_m: float) -> np.ndarray:
+def hit_mask(scene, camera: CameraModel, T_world_cam: np.ndarray, max_range_m: float = 20.0) -> np.ndarray:
+    """``(H, W)`` bool: which pixels of a camera at ``T_world_cam`` see a surface of ``scene`` (a
+    :func:`raycaster`) within ``max_range_m`` along the ray."""
     import open3d as o3d
 
     u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
@@ -66,11 +69,11 @@ def mesh_hole_fraction(
     max_range_m: float = 20.0,
 ) -> HoleResult:
     """Holes of a reconstructed mesh seen from ``poses_world_cam`` ``(V, 4, 4)`` (e.g. leaned ones)."""
-    rec, gt = _raycaster(reconstruction), _raycaster(ground_truth)
+    rec, gt = raycaster(reconstruction), raycaster(ground_truth)
     holes, surface = [], 0
     for pose in np.asarray(poses_world_cam):
-        gt_hit = _hit_mask(gt, camera, pose, max_range_m)
-        holes.append(gt_hit & ~_hit_mask(rec, camera, pose, max_range_m))
+        gt_hit = hit_mask(gt, camera, pose, max_range_m)
+        holes.append(gt_hit & ~hit_mask(rec, camera, pose, max_range_m))
         surface += int(gt_hit.sum())
     stacked = np.stack(holes)
     return HoleResult(float(stacked.sum() / surface) if surface else 0.0, stacked)

@@ -1,4 +1,5 @@
-"""``lts eval --mesh REC --gt GT``: geometric accuracy of one mesh against another."""
+"""``lts eval``: a training run (``lts eval RUN_DIR``, see :mod:`eval.run_eval_cli`) or one mesh
+against another (``lts eval --mesh REC --gt GT``)."""
 
 from __future__ import annotations
 
@@ -7,17 +8,50 @@ from pathlib import Path
 import typer
 
 from rig.cli_support import console, emit_json
+from rig.errors import InputError
 
 
 def eval_command(
-    mesh: Path = typer.Option(..., "--mesh", help="Reconstructed mesh (PLY/OBJ/GLB)."),
-    gt: Path = typer.Option(..., "--gt", help="Ground-truth mesh."),
+    run_dir: Path | None = typer.Argument(
+        None, help="Training run folder (lts train --out); leave out to compare --mesh with --gt."
+    ),
+    mesh: Path | None = typer.Option(
+        None, "--mesh", help="Reconstructed mesh (PLY/OBJ/GLB), instead of RUN_DIR."
+    ),
+    gt: Path | None = typer.Option(
+        None,
+        "--gt",
+        help="With --mesh: the ground-truth mesh. With RUN_DIR: a virtual-rig ground-truth folder "
+        "(lts sim OUT/ground_truth) or its parent OUT.",
+    ),
     threshold: float = typer.Option(0.1, "--threshold", help="F-score distance threshold in metres."),
     samples: int = typer.Option(200_000, "--samples", help="Points sampled by area on each mesh."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the surface sampling."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the surface sampling (--mesh form)."),
+    report: bool = typer.Option(
+        True, "--report/--no-report", help="RUN_DIR form: write RUN_DIR/report.html."
+    ),
+    physics: bool = typer.Option(
+        True, "--physics/--no-physics", help="RUN_DIR form: run the pybullet probe test (with --gt)."
+    ),
+    device: str = typer.Option("cpu", "--device", help="RUN_DIR form: cpu or cuda, where the model renders."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
-    """Compare a mesh with ground truth: Chamfer-L1 and precision/recall/F-score (no culling)."""
+    """Evaluate a training run (photometry, geometry, leaned-view holes, physics, report), or compare
+    a mesh with ground truth (--mesh REC --gt GT: Chamfer-L1 and precision/recall/F-score, no culling).
+
+    RUN_DIR writes RUN_DIR/eval.json and RUN_DIR/report.html.
+    """
+    if run_dir is not None:
+        if mesh is not None:
+            raise InputError("give either RUN_DIR or --mesh, not both", field="--mesh")
+        from eval.run_eval_cli import evaluate_run_command
+
+        evaluate_run_command(run_dir, gt, threshold, samples, report, physics, device, json_out)
+        return
+    if mesh is None:
+        raise InputError("give a run folder (lts eval RUN_DIR) or a mesh (lts eval --mesh REC --gt GT)")
+    if gt is None:
+        raise InputError("--mesh needs --gt GT_MESH to compare with", field="--gt")
     from eval.geometry import compare_meshes
     from rig.mesh_io import load_mesh
 

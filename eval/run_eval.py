@@ -1,0 +1,426 @@
+"""Evaluation of a training run (``lts eval RUN_DIR``): the numbers of the paper's tables and the
+pictures of the report.
+
+- **Photometry** on the held-out keyframes: the final model (``RUN_DIR/model.pt``) rendered at each
+  test pose, PSNR / SSIM / LPIPS against the captured image (mean over views), and the error of the
+  rendered depth (``depth / alpha``) against the LiDAR depth over pixels with a return and
+  ``alpha > 0.5`` (pooled over views).
+- **Geometry** (needs ground truth, :mod:`eval.ground_truth`): the exported ``RUN_DIR/mesh.ply``
+  against the truth moved into the scene frame, both culled to the training frusta (the contract's
+  ``chamfer_m``, ``fscore``, ...), and again with the truth also culled to what the training cameras
+  see (:func:`~eval.geometry.visible_mask`; the ``*_visible`` fields).
+- **Leaned views** (:func:`~eval.leaned_poses` of the test poses): a hole is a pixel where the
+  reference has a surface and the model's accumulated alpha is < 0.5. The reference is the ground
+  truth when given, otherwise the scene's SLAM mesh (``hole_reference`` says which).
+- **Physics** (needs ground truth and pybullet): probes dropped along the keyframes' footprint on
+  ``RUN_DIR/collision.obj`` and on the truth (:mod:`eval.physics`).
+
+A metric that cannot be computed is ``None`` and its reason is in ``reasons`` — never a made-up 0.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+import trimesh
+from scipy.spatial import cKDTree
+
+from eval.geometry import DEFAULT_SAMPLES, compare_point_sets, frustum_mask, sample_surface, visible_mask
+from eval.leaned_views import hit_mask, leaned_poses, raycaster
+from eval.photometric import lpips, psnr, ssim
+from rig.errors import InputError
+from rig.mesh_io import load_mesh
+from slam_bridge.scene import Keyframe, Scene, load_scene
+from splat import run_dir as layout
+from splat.model import TriangleModel, load_model
+
+#: The fields ``lts eval RUN_DIR --json`` promises (../shared/DESIGN.md), in this order.
+CONTRACT_FIELDS = (
+    "psnr",
+    "ssim",
+    "lpips",
+    "chamfer_m",
+    "fscore",
+    "precision",
+    "recall",
+    "threshold_m",
+    "hole_fraction_leaned",
+    "n_triangles",
+    "train_seconds",
+)
+#: Fields that need ``--gt`` (``None`` without it).
+GT_FIELDS = (
+    "chamfer_m",
+    "fscore",
+    "precision",
+    "recall",
+    "accuracy_m",
+    "completeness_m",
+    "chamfer_visible_m",
+    "fscore_visible",
+    "precision_visible",
+    "recall_visible",
+    "accuracy_visible_m",
+    "completeness_visible_m",
+    "gt_visible_fraction",
+    "gt_alignment_rmse_m",
+    "physics_probes",
+    "fall_through_rate",
+    "height_error_mean_m",
+    "height_error_max_m",
+)
+EVAL_FILE = "eval.json"
+MESH_FILE = "mesh.ply"
+COLLISION_FILES = ("collision.obj", "collision.ply")
+#: Leaned variants of each test pose, in the order of :func:`~eval.leaned_poses`.
+LEAN_YAW_DEG = 10.0
+LEAN_SHIFT_M = 0.2
+LEAN_LABELS = (
+    f"yaw +{LEAN_YAW_DEG:g}°",
+    f"yaw −{LEAN_YAW_DEG:g}°",
+    f"shift +{LEAN_SHIFT_M:g} m",
+    f"shift −{LEAN_SHIFT_M:g} m",
+)
+ALPHA_SURFACE = 0.5
+#: Up axis of a virtual-rig ground-truth world (its scenes are z-up).
+GT_UP = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class ViewImages:
+    """One test view: ``(H, W, 3)`` float images in [0, 1] and the view's numbers."""
+
+    name: str
+    render: np.ndarray
+    target: np.ndarray
+    alpha: np.ndarray
+    psnr: float
+    ssim: float
+
+
+@dataclass(frozen=True)
+class LeanedImages:
+    """One leaned view: the render, the reference's surface and the holes ``(H, W)`` bool."""
+
+    name: str
+    label: str
+    render: np.ndarray
+    surface: np.ndarray
+    holes: np.ndarray
+
+    @property
+    def hole_fraction(self) -> float:
+        surface = int(self.surface.sum())
+        return float(self.holes.sum() / surface) if surface else 0.0
+
+
+@dataclass(frozen=True)
+class PointDistances:
+    """Frustum-culled surface samples in the scene frame and their distances to the other mesh;
+    ``T_display_world`` takes them to a z-up frame for pictures (the ground truth's world)."""
+
+    reconstructed: np.ndarray
+    to_ground_truth: np.ndarray
+    ground_truth: np.ndarray
+    to_reconstruction: np.ndarray
+    threshold_m: float
+    T_display_world: np.ndarray
+
+
+@dataclass(frozen=True)
+class PhysicsDrops:
+    """Probe starts ``(P, 3)``, resting heights and fall-throughs on both meshes (scene frame, heights
+    along ``up``); ``T_display_world`` as in :class:`PointDistances`."""
+
+    start: np.ndarray
+    up: np.ndarray
+    T_display_world: np.ndarray
+    rec_height: np.ndarray
+    rec_fell: np.ndarray
+    gt_height: np.ndarray
+    gt_fell: np.ndarray
+
+
+@dataclass
+class RunEvaluation:
+    """Everything ``lts eval RUN_DIR`` measured: ``metrics`` (the JSON) and the report's material."""
+
+    run_dir: Path
+    metrics: dict
+    views: list[ViewImages] = field(default_factory=list)
+    leaned: list[LeanedImages] = field(default_factory=list)
+    points: PointDistances | None = None
+    physics: PhysicsDrops | None = None
+
+
+def _as_rgb(image: torch.Tensor) -> np.ndarray:
+    return image.detach().clamp(0, 1).cpu().numpy().astype(np.float32)
+
+
+def _render(model: TriangleModel, scene: Scene, T_world_cam: np.ndarray):
+    T_cam_world = torch.as_tensor(np.linalg.inv(T_world_cam), dtype=torch.float32, device=model.device)
+    with torch.no_grad():
+        return model.render(scene.camera, T_cam_world)
+
+
+def _photometric(
+    model: TriangleModel, scene: Scene, tests: list[Keyframe], metrics: dict, reasons: dict
+) -> list[ViewImages]:
+    views, psnrs, ssims, lpips_values, depth_errors = [], [], [], [], []
+    lpips_reason = ""
+    for keyframe in tests:
+        out = _render(model, scene, keyframe.T_world_cam)
+        render = _as_rgb(out.rgb)
+        target = scene.image(keyframe).astype(np.float32) / 255.0
+        views.append(
+            ViewImages(
+                keyframe.name, render, target, out.alpha.detach().cpu().numpy(), psnr(render, target),
+                ssim(render, target),
+            )
+        )  # fmt: skip
+        psnrs.append(views[-1].psnr)
+        ssims.append(views[-1].ssim)
+        if not lpips_reason:
+            result = lpips(render, target)
+            if result.value is None:
+                lpips_reason = result.reason
+            else:
+                lpips_values.append(result.value)
+        lidar = scene.depth(keyframe)
+        alpha = out.alpha.detach().cpu().numpy()
+        valid = (lidar > 0) & (alpha > ALPHA_SURFACE)
+        depth = out.depth.detach().cpu().numpy()[valid] / alpha[valid]
+        depth_errors.append(np.abs(depth - lidar[valid]))
+    metrics["psnr"] = float(np.mean(psnrs))
+    metrics["ssim"] = float(np.mean(ssims))
+    metrics["lpips"] = None if lpips_reason else float(np.mean(lpips_values))
+    if lpips_reason:
+        reasons["lpips"] = lpips_reason
+    errors = np.concatenate(depth_errors)
+    metrics["depth_error_median_m"] = float(np.median(errors)) if errors.size else None
+    metrics["depth_error_mean_m"] = float(np.mean(errors)) if errors.size else None
+    metrics["depth_error_pixels"] = int(errors.size)
+    if not errors.size:
+        reasons["depth_error_median_m"] = "no test pixel has both a LiDAR return and alpha > 0.5"
+    return views
+
+
+def _holes(
+    model: TriangleModel,
+    scene: Scene,
+    tests: list[Keyframe],
+    views: list[ViewImages],
+    reference: trimesh.Trimesh,
+    metrics: dict,
+) -> list[LeanedImages]:
+    """Hole fractions of the unleaned test views and of their leaned variants."""
+    caster = raycaster(reference)
+    camera = scene.camera
+    surface_total = holes_total = 0
+    for keyframe, view in zip(tests, views, strict=True):
+        surface = hit_mask(caster, camera, keyframe.T_world_cam)
+        surface_total += int(surface.sum())
+        holes_total += int((surface & (view.alpha < ALPHA_SURFACE)).sum())
+    metrics["hole_fraction_test"] = holes_total / surface_total if surface_total else None
+    poses = leaned_poses(np.stack([k.T_world_cam for k in tests]), LEAN_YAW_DEG, LEAN_SHIFT_M)
+    leaned = []
+    for index, pose in enumerate(poses):
+        out = _render(model, scene, pose)
+        surface = hit_mask(caster, camera, pose)
+        holes = surface & (out.alpha.detach().cpu().numpy() < ALPHA_SURFACE)
+        keyframe = tests[index // len(LEAN_LABELS)]
+        label = LEAN_LABELS[index % len(LEAN_LABELS)]
+        leaned.append(LeanedImages(keyframe.name, label, _as_rgb(out.rgb), surface, holes))
+    surface = sum(int(v.surface.sum()) for v in leaned)
+    metrics["hole_fraction_leaned"] = sum(int(v.holes.sum()) for v in leaned) / surface if surface else None
+    return leaned
+
+
+def _geometry(
+    reconstructed: trimesh.Trimesh,
+    scene: Scene,
+    truth,
+    threshold_m: float,
+    samples: int,
+    metrics: dict,
+) -> PointDistances:
+    from eval.ground_truth import compare_with_ground_truth
+
+    culled = compare_with_ground_truth(reconstructed, scene, truth, threshold_m, samples)
+    metrics.update(
+        chamfer_m=culled.chamfer_m,
+        fscore=culled.fscore,
+        precision=culled.precision,
+        recall=culled.recall,
+        accuracy_m=culled.accuracy_m,
+        completeness_m=culled.completeness_m,
+    )
+    # The same samples (seeds of compare_with_ground_truth) for the visible-only variant and pictures.
+    poses = np.stack([k.T_world_cam for k in scene.split("train")])
+    rec = sample_surface(reconstructed, samples, seed=0)
+    gt = sample_surface(truth.mesh, samples, seed=1)
+    rec = rec[frustum_mask(rec, poses, scene.camera)]
+    gt = gt[frustum_mask(gt, poses, scene.camera)]
+    seen = visible_mask(gt, truth.mesh, poses, scene.camera)
+    visible = compare_point_sets(rec, gt[seen], threshold_m)
+    metrics.update(
+        chamfer_visible_m=visible.chamfer_m,
+        fscore_visible=visible.fscore,
+        precision_visible=visible.precision,
+        recall_visible=visible.recall,
+        accuracy_visible_m=visible.accuracy_m,
+        completeness_visible_m=visible.completeness_m,
+        gt_visible_fraction=float(seen.mean()),
+    )
+    to_gt, _ = cKDTree(gt).query(rec, workers=-1)
+    to_rec, _ = cKDTree(rec).query(gt, workers=-1)
+    return PointDistances(rec, to_gt, gt, to_rec, float(threshold_m), truth.T_gt_world)
+
+
+def _scene_up(truth) -> np.ndarray:
+    """The ground truth's up axis expressed in the scene (SLAM map) frame."""
+    up = truth.T_gt_world[:3, :3].T @ GT_UP
+    return up / np.linalg.norm(up)
+
+
+def _physics(run_dir: Path, scene: Scene, truth, metrics: dict, reasons: dict) -> PhysicsDrops | None:
+    if importlib.util.find_spec("pybullet") is None:
+        reasons["physics"] = "pybullet is not installed (pip install '.[physics]')"
+        return None
+    collision = next((run_dir / n for n in COLLISION_FILES if (run_dir / n).is_file()), None)
+    if collision is None:
+        reasons["physics"] = f"the run has no collision mesh ({' or '.join(COLLISION_FILES)})"
+        return None
+    from eval.physics import compare_drops, drop_probes, footprint_grid
+
+    up = _scene_up(truth)
+    keyframes = sorted(scene.keyframes, key=lambda k: k.t_ns)
+    starts = footprint_grid(np.stack([k.T_world_cam[:3, 3] for k in keyframes]), up)
+    rec = drop_probes(load_mesh(collision), starts, up)
+    gt = drop_probes(truth.mesh, starts, up)
+    try:
+        result = compare_drops(rec, gt)
+    except InputError as exc:
+        reasons["physics"] = str(exc)
+        return None
+    metrics.update(
+        physics_probes=result.probes,
+        fall_through_rate=result.fall_through_rate,
+        height_error_mean_m=_finite(result.mean_height_error_m),
+        height_error_max_m=_finite(result.max_height_error_m),
+        physics_mesh=collision.name,
+    )
+    if metrics["height_error_mean_m"] is None:
+        reasons["height_error_mean_m"] = "every probe fell through the reconstruction"
+    return PhysicsDrops(
+        starts, up, truth.T_gt_world, rec.rest_height, rec.fell_through, gt.rest_height, gt.fell_through
+    )
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def _read_summary(run_dir: Path) -> dict:
+    path = layout.summary_path(run_dir)
+    if not path.is_file():
+        return {}
+    try:
+        summary = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise InputError(f"not JSON ({exc})", path=path) from None
+    return summary if isinstance(summary, dict) else {}
+
+
+def evaluate_run(
+    run_dir: str | Path,
+    gt: str | Path | None = None,
+    threshold_m: float = 0.1,
+    samples: int = DEFAULT_SAMPLES,
+    device: str = "cpu",
+    physics: bool = True,
+    log: Callable[[str], None] = lambda _: None,
+) -> RunEvaluation:
+    """Evaluate a finished run (see the module docstring); ``gt`` is a virtual-rig ground-truth
+    folder, its parent or its ``mesh.ply`` (``None``: no geometric or physics metrics)."""
+    run_dir = Path(run_dir)
+    if threshold_m <= 0:
+        raise InputError(f"threshold must be positive, got {threshold_m}", field="threshold")
+    scene = load_scene(layout.scene_of(run_dir))
+    model = load_model(layout.model_path(run_dir), device)
+    tests = scene.split("test")
+    if not tests:
+        raise InputError("the scene has no test keyframes to evaluate on", path=scene.root, field="split")
+    summary = _read_summary(run_dir)
+    metrics: dict = dict.fromkeys(CONTRACT_FIELDS)
+    metrics["threshold_m"] = float(threshold_m)
+    reasons: dict[str, str] = {}
+
+    log(f"rendering {len(tests)} test views")
+    views = _photometric(model, scene, tests, metrics, reasons)
+
+    truth = None
+    if gt is not None:
+        from eval.ground_truth import load_ground_truth
+
+        truth = load_ground_truth(scene, gt)
+    metrics.update(dict.fromkeys(GT_FIELDS))
+    if truth is not None:
+        metrics["gt_alignment_rmse_m"] = truth.pose_rmse_m
+        reference, metrics["hole_reference"] = truth.mesh, "ground_truth"
+    elif scene.mesh_path.is_file():
+        reference, metrics["hole_reference"] = load_mesh(scene.mesh_path), "slam_mesh"
+    else:
+        reference, metrics["hole_reference"] = None, None
+        reasons["hole_fraction_leaned"] = f"no --gt and the scene has no SLAM mesh ({scene.mesh_path})"
+    leaned = []
+    if reference is not None:
+        log(f"rendering {4 * len(tests)} leaned views (holes against the {metrics['hole_reference']})")
+        leaned = _holes(model, scene, tests, views, reference, metrics)
+
+    points = drops = None
+    mesh_path = run_dir / MESH_FILE
+    if truth is None:
+        for name in GT_FIELDS:
+            reasons.setdefault(name, "needs --gt (a virtual-rig ground-truth folder)")
+    elif not mesh_path.is_file():
+        reasons["chamfer_m"] = f"the run has no exported mesh ({mesh_path})"
+    else:
+        log(f"comparing {mesh_path.name} with the ground truth ({samples} samples each)")
+        points = _geometry(load_mesh(mesh_path), scene, truth, threshold_m, samples, metrics)
+    if truth is not None and physics:
+        log("dropping physics probes on the collision mesh and the ground truth")
+        drops = _physics(run_dir, scene, truth, metrics, reasons)
+    elif truth is not None:
+        reasons["physics"] = "skipped (--no-physics)"
+
+    metrics["n_triangles"] = summary.get("n_triangles", model.n_triangles)
+    metrics["train_seconds"] = summary.get("train_seconds")
+    if metrics["train_seconds"] is None:
+        reasons["train_seconds"] = f"no train_seconds in {layout.summary_path(run_dir)}"
+    metrics.update(
+        n_test_views=len(tests),
+        n_leaned_views=len(leaned),
+        method=summary.get("method"),
+        run_dir=str(run_dir),
+        scene_dir=str(scene.root),
+        gt_dir=str(gt) if gt is not None else None,
+        reasons=reasons,
+    )
+    return RunEvaluation(run_dir, metrics, views, leaned, points, drops)
+
+
+def write_eval_json(evaluation: RunEvaluation) -> Path:
+    """Write ``RUN_DIR/eval.json`` (the metrics, NaN/Inf as null)."""
+    from rig.plain import plain_data
+
+    path = evaluation.run_dir / EVAL_FILE
+    path.write_text(json.dumps(plain_data(evaluation.metrics, nonfinite_as_none=True), indent=1) + "\n")
+    return path

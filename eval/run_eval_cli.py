@@ -1,0 +1,82 @@
+"""``lts eval RUN_DIR [--gt GT_DIR]``: evaluate a training run, write ``eval.json`` and
+``report.html`` (mounted through :func:`eval.mesh_eval_cli.eval_command`)."""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from rig.cli_support import console, emit_json
+
+
+@contextmanager
+def _stdout_to_stderr() -> Iterator[None]:
+    """Native libraries (pybullet's banner, open3d) print on file descriptor 1; keep stdout for
+    the one JSON object."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def _text(value, unit: str = "", scale: float = 1.0, digits: int = 3) -> str:
+    return "n/a" if value is None else f"{value * scale:.{digits}f}{unit}"
+
+
+def evaluate_run_command(
+    run_dir: Path,
+    gt: Path | None,
+    threshold: float,
+    samples: int,
+    report: bool,
+    physics: bool,
+    device: str,
+    json_out: bool,
+) -> None:
+    from eval.run_eval import evaluate_run, write_eval_json
+
+    def log(message: str) -> None:
+        console.print(f"[dim]{message}[/]", highlight=False)
+
+    with _stdout_to_stderr():
+        evaluation = evaluate_run(run_dir, gt, threshold, samples, device, physics, log)
+        eval_path = write_eval_json(evaluation)
+        report_path = None
+        if report:
+            from eval.report import write_report
+
+            log("writing the report")
+            report_path = write_report(evaluation)
+    m = evaluation.metrics
+    if json_out:
+        emit_json(m)
+        return
+    psnr, ssim, lpips = _text(m["psnr"], " dB", digits=2), _text(m["ssim"]), _text(m["lpips"])
+    depth = _text(m["depth_error_median_m"], " cm", 100, 2)
+    holes = _text(m["hole_fraction_leaned"], " %", 100, 2)
+    lines = [
+        f"test views ({m['n_test_views']}): PSNR {psnr}, SSIM {ssim}, LPIPS {lpips}; "
+        f"LiDAR depth error median {depth}",
+        f"geometry at {m['threshold_m']:g} m: F-score {_text(m['fscore'])} (visible GT "
+        f"{_text(m['fscore_visible'])}), Chamfer-L1 {_text(m['chamfer_m'], ' cm', 100, 2)}",
+        f"leaned-view holes {holes} (against the {m['hole_reference']}); physics fall-through "
+        f"{_text(m['fall_through_rate'], ' %', 100, 1)}, height error mean "
+        f"{_text(m['height_error_mean_m'], ' cm', 100, 2)}",
+        f"{m['n_triangles']} triangles, trained in {_text(m['train_seconds'], ' s', digits=0)}",
+    ]
+    for line in lines:
+        console.print(line, highlight=False)
+    by_reason: dict[str, list[str]] = {}
+    for key, reason in m["reasons"].items():
+        by_reason.setdefault(reason, []).append(key)
+    for reason, keys in by_reason.items():
+        console.print(f"  [dim]null: {', '.join(keys)}: {reason}[/]", highlight=False)
+    console.print(f"wrote {eval_path}" + (f" and {report_path}" if report_path else ""), highlight=False)
