@@ -52,6 +52,17 @@ class ProjectedTriangles:
     index: Tensor
 
 
+def _length(x: Tensor, keepdim: bool = False) -> Tensor:
+    """Euclidean length of rows ``(K, 3)``, scaled by their largest |component| first: the squares
+    of a float32 cross product of ~1e-10 m edges underflow to 0 (then the unit normal was inf/NaN).
+    The scale is held constant for autograd, which is exact because the length is homogeneous.
+    (Mirrors ``safe_length`` in ``csrc/triangle_setup.h``.)"""
+    m = x.detach().abs().amax(dim=1, keepdim=True)
+    m = torch.where(m > 0, m, torch.ones_like(m))
+    length = m * (x / m).norm(dim=1, keepdim=True)
+    return length if keepdim else length[:, 0]
+
+
 def _visible(tri_cam: Tensor, opacity: Tensor, sigma: Tensor, intr: Intrinsics, near: float) -> Tensor:
     """``(F,)`` bool: in front of the near plane, not edge-on, not tiny, possibly visible."""
     z = tri_cam[..., 2]
@@ -65,15 +76,19 @@ def _visible(tri_cam: Tensor, opacity: Tensor, sigma: Tensor, intr: Intrinsics, 
     normal = torch.linalg.cross(tri_cam[:, 1] - tri_cam[:, 0], tri_cam[:, 2] - tri_cam[:, 0])
     centroid = tri_cam.mean(dim=1)
     facing = (normal * centroid).sum(dim=1).abs()
-    not_edge_on = facing >= EDGE_ON_COS * normal.norm(dim=1) * centroid.norm(dim=1)
+    not_edge_on = facing >= EDGE_ON_COS * _length(normal) * _length(centroid)
     on_screen = (
         (u.max(dim=1).values >= -BOX_PAD_PX)
         & (u.min(dim=1).values <= intr.width - 1 + BOX_PAD_PX)
         & (v.max(dim=1).values >= -BOX_PAD_PX)
         & (v.min(dim=1).values <= intr.height - 1 + BOX_PAD_PX)
     )
+    # Projections that overflow (float32 with a vertex grazing the near plane, extreme focal
+    # lengths) make inf - inf = NaN further on; such a triangle cannot be drawn meaningfully.
+    finite = torch.isfinite(u).all(dim=1) & torch.isfinite(v).all(dim=1) & torch.isfinite(twice_area)
     return (
         in_front
+        & finite
         & not_edge_on
         & (inradius >= MIN_INRADIUS_PX)  # NaN for collinear points compares False: culled
         & on_screen
@@ -96,8 +111,12 @@ def _support_box(q: Tensor, side: Tensor, opacity: Tensor, sigma: Tensor, intr: 
     lo = torch.ceil(shrunk.min(dim=1).values - BOX_PAD_PX)
     hi = torch.floor(shrunk.max(dim=1).values + BOX_PAD_PX)
     limit = torch.tensor([intr.width - 1, intr.height - 1], dtype=q.dtype, device=q.device)
-    lo = torch.maximum(lo, torch.zeros_like(lo))
-    hi = torch.minimum(hi, limit)
+    # Clamp on both sides *before* the int32 cast: the support of a visible triangle can lie
+    # billions of pixels off the image (a vertex grazing the near plane, extreme intrinsics), and
+    # casting such a float to int32 is undefined (x86 gives INT_MIN, a box spanning 2^31 pixels
+    # that the binning then walks out of bounds). lo > limit or hi < 0 is an empty box.
+    lo = torch.minimum(torch.maximum(lo, torch.zeros_like(lo)), limit + 1)
+    hi = torch.maximum(torch.minimum(hi, limit), torch.full_like(hi, -1.0))
     return t, torch.cat([lo, hi], dim=1).to(torch.int32)
 
 
@@ -150,7 +169,7 @@ def project_triangles(
     color = (share[..., None] * colors[fk][:, opposite]).reshape(-1, 9)
     inv_depth = share * inv_z[:, opposite]
     normal = torch.linalg.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    normal = normal / normal.norm(dim=1, keepdim=True)
+    normal = normal / _length(normal, keepdim=True)
     with torch.no_grad():  # face the camera (at the origin)
         flip = torch.where((normal * p.mean(dim=1)).sum(dim=1) > 0, -1.0, 1.0).to(normal.dtype)
     normal = normal * flip[:, None]

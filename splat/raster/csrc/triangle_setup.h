@@ -68,6 +68,17 @@ LTS_HD void sides(const Projected<T>& pr, Sides<T>& s) {
   s.twice_area = s.d[0][0] * (-s.d[2][1]) - s.d[0][1] * (-s.d[2][0]);
 }
 
+// Euclidean length of a 3-vector, scaled by its largest |component| first: the squares of a
+// float32 cross product of ~1e-10 m edges (or a tiny scene seen with extreme focal lengths)
+// underflow to 0, which made the unit normal inf/NaN. 0 for the zero vector.
+template <typename T>
+LTS_HD T safe_length(const T x[3]) {
+  const T m = fmax(fabs(x[0]), fmax(fabs(x[1]), fabs(x[2])));
+  if (!(m > T(0))) return m;
+  const T a = x[0] / m, b = x[1] / m, c = x[2] / m;
+  return m * sqrt(a * a + b * b + c * c);
+}
+
 template <typename T>
 LTS_HD void face_normal(const Projected<T>& pr, T N[3]) {
   T e1[3], e2[3];
@@ -91,12 +102,18 @@ LTS_HD bool visible(const View<T>& v, const T* const world[3], T opacity, T sigm
   }
   Sides<T> s;
   sides(pr, s);
+  // Projections that overflow (float32 with a vertex grazing the near plane, extreme focal
+  // lengths) turn into inf - inf = NaN further on: such a triangle cannot be drawn meaningfully.
+  for (int i = 0; i < 3; ++i) {
+    if (!isfinite(pr.q[i][0]) || !isfinite(pr.q[i][1])) return false;
+  }
+  if (!isfinite(s.twice_area)) return false;
   if (!(fabs(s.twice_area) / s.perimeter >= T(kMinInradiusPx))) return false;
   T N[3], g[3];
   face_normal(pr, N);
   for (int r = 0; r < 3; ++r) g[r] = (pr.P[0][r] + pr.P[1][r] + pr.P[2][r]) / T(3);
-  const T n_len = sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2]);
-  const T g_len = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+  const T n_len = safe_length(N);
+  const T g_len = safe_length(g);
   if (!(fabs(N[0] * g[0] + N[1] * g[1] + N[2] * g[2]) >= T(kEdgeOnCos) * n_len * g_len)) return false;
   T lo[2] = {pr.q[0][0], pr.q[0][1]}, hi[2] = {pr.q[0][0], pr.q[0][1]};
   for (int i = 1; i < 3; ++i) {
@@ -133,7 +150,7 @@ LTS_HD void setup(const View<T>& v, const T* const world[3], const T* const colo
   p[kSigma] = sigma;
   T N[3];
   face_normal(pr, N);
-  const T inv_len = T(1) / sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2]);
+  const T inv_len = T(1) / safe_length(N);
   T facing = T(0);
   for (int r = 0; r < 3; ++r) facing += N[r] * inv_len * (pr.P[0][r] + pr.P[1][r] + pr.P[2][r]);
   const T flip = facing > T(0) ? T(-1) : T(1);
@@ -158,9 +175,13 @@ LTS_HD void setup(const View<T>& v, const T* const world[3], const T* const colo
     }
   }
   const T limit[2] = {T(v.width - 1), T(v.height - 1)};
+  // Clamp on both sides *before* the int cast: the support of a visible triangle can lie
+  // billions of pixels off the image, and casting such a float to int is undefined (x86 gives
+  // INT_MIN: a box spanning 2^31 pixels that the binning walks out of bounds). lo > limit or
+  // hi < 0 is an empty box.
   for (int a = 0; a < 2; ++a) {
-    box[a] = static_cast<int>(fmax(ceil(lo[a] - T(kBoxPadPx)), T(0)));
-    box[2 + a] = static_cast<int>(fmin(floor(hi[a] + T(kBoxPadPx)), limit[a]));
+    box[a] = static_cast<int>(fmin(fmax(ceil(lo[a] - T(kBoxPadPx)), T(0)), limit[a] + T(1)));
+    box[2 + a] = static_cast<int>(fmax(fmin(floor(hi[a] + T(kBoxPadPx)), limit[a]), T(-1)));
   }
 }
 
@@ -225,7 +246,7 @@ LTS_HD void setup_backward(const View<T>& v, const T* const world[3], const T* c
     e1[r] = pr.P[1][r] - pr.P[0][r];
     e2[r] = pr.P[2][r] - pr.P[0][r];
   }
-  const T len = sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2]);
+  const T len = safe_length(N);
   T facing = T(0);
   for (int r = 0; r < 3; ++r) facing += N[r] / len * (pr.P[0][r] + pr.P[1][r] + pr.P[2][r]);
   const T flip = facing > T(0) ? T(-1) : T(1);
