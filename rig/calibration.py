@@ -47,6 +47,8 @@ def load_calibration(path: str | Path) -> Calibration:
         data = yaml.safe_load(path.read_text())
     except OSError as exc:
         raise InputError(f"cannot read calibration ({exc.strerror})", path=path) from None
+    except UnicodeDecodeError:
+        raise InputError("not a text file (expected YAML)", path=path) from None
     except yaml.YAMLError as exc:
         raise InputError(f"not valid YAML ({exc})", path=path) from None
     if not isinstance(data, dict):

@@ -217,6 +217,13 @@ class CameraModel:
             width, height = int(data["width"]), int(data["height"])
         except (TypeError, ValueError) as exc:
             raise InputError(f"expected numbers ({exc})", path=path, field="camera") from None
+        if any(isinstance(data[k], float) and not data[k].is_integer() for k in ("width", "height")):
+            # int() would silently turn 320.5 into 320
+            raise InputError(
+                f"image size must be whole pixels, got {data['width']}x{data['height']}",
+                path=path,
+                field="camera.width/height",
+            )
         try:
             return cls(str(data["model"]), width, height, K, dist)  # type: ignore[arg-type]
         except InputError as exc:

@@ -11,6 +11,9 @@ from rig.errors import InputError, OutOfRangeError
 from rig.transforms import make_transform, to_quaternion
 
 _UNIT_QUAT_TOL = 1e-3
+#: Tolerated deviation of a pose's rotation block from orthonormality and from det = 1 (files
+#: print matrices to ~6 digits).
+_ROTATION_TOL = 1e-2
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,12 +102,25 @@ class Trajectory:
             )
         if not np.all(np.isfinite(poses)):
             raise InputError("pose holds NaN or Inf", path=source, field="pose")
+        if poses.shape[1] == 4:
+            bad = np.flatnonzero(np.abs(poses[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) > 1e-6)
+            if bad.size:
+                raise InputError(
+                    f"last row of pose {int(bad[0])} is {poses[bad[0], 3].tolist()}; expected [0, 0, 0, 1]",
+                    path=source,
+                    field="pose",
+                )
         rotations = poses[:, :3, :3].copy()
         dets = np.linalg.det(rotations)
-        bad = np.flatnonzero(np.abs(dets - 1.0) > 1e-2)
+        # Orthonormality too, not only the determinant: a shear with det 1 is no rotation, and a
+        # quaternion taken from it would be a confident wrong orientation.
+        skew = np.abs(rotations @ rotations.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))
+        bad = np.flatnonzero((np.abs(dets - 1.0) > _ROTATION_TOL) | (skew > _ROTATION_TOL))
         if bad.size:
+            i = int(bad[0])
             raise InputError(
-                f"rotation of pose {int(bad[0])} has determinant {dets[bad[0]]:.6g}; expected a rotation",
+                f"rotation of pose {i} has determinant {dets[i]:.6g} and |R Rᵀ - I| = {skew[i]:.3g}; "
+                f"expected a rotation (within {_ROTATION_TOL:g})",
                 path=source,
                 field="pose",
             )

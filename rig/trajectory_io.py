@@ -24,6 +24,7 @@ KITTI_FIELDS = tuple(f"r{r}{c}" for r in range(3) for c in range(4))
 EUROC_FIELDS = ("timestamp_ns", "px", "py", "pz", "qw", "qx", "qy", "qz")
 MATRIX_FIELDS = tuple(f"m{r}{c}" for r in range(4) for c in range(4))
 _NS_PER_S = 1_000_000_000
+_INT64_MIN, _INT64_MAX = int(np.iinfo(np.int64).min), int(np.iinfo(np.int64).max)
 logger = logging.getLogger(__name__)
 
 
@@ -39,7 +40,10 @@ def seconds_text_to_ns(text: str) -> int:
         raise ValueError(f"{text!r} is not a number") from None
     if not value.is_finite():
         raise ValueError(f"{text!r} is not a finite number")
-    return int((value * _NS_PER_S).to_integral_value())
+    t_ns = int((value * _NS_PER_S).to_integral_value())
+    if not _INT64_MIN <= t_ns <= _INT64_MAX:
+        raise ValueError(f"{text!r} s is outside the range of int64 nanoseconds (about ±292 years)")
+    return t_ns
 
 
 def ns_to_seconds_text(t_ns: int) -> str:
@@ -161,9 +165,16 @@ def _times_for(path: Path, count: int, times_path: str | Path | None, rate_hz: f
                 path=times_path,
             )
         return t_ns
-    if rate_hz is None or rate_hz <= 0:
+    if rate_hz is None:
         raise InputError("poses carry no times: give a times file or a positive rate", path=path)
-    return np.round(np.arange(count) * (_NS_PER_S / rate_hz)).astype(np.int64)
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise InputError(f"rate must be a positive number of Hz, got {rate_hz}", path=path, field="rate")
+    step_ns = _NS_PER_S / rate_hz
+    if step_ns < 1 or (count - 1) * step_ns > _INT64_MAX:
+        raise InputError(
+            f"{count} poses at {rate_hz:g} Hz do not fit integer nanoseconds", path=path, field="rate"
+        )
+    return np.round(np.arange(count) * step_ns).astype(np.int64)
 
 
 def read_kitti(
@@ -190,16 +201,22 @@ def read_euroc(path: str | Path) -> Trajectory:
     """Read a EuRoC ground-truth csv: ``timestamp_ns, px, py, pz, qw, qx, qy, qz, ...``."""
     path = Path(path)
     texts, rows, lines = _parse_rows(path, EUROC_FIELDS, separator=",")
-    try:
-        t_ns = np.array([int(t) for t in texts], dtype=np.int64)
-    except ValueError:
-        bad = next(i for i, t in enumerate(texts) if not t.lstrip("-").isdigit())
-        raise InputError(
-            f"{texts[bad]!r} is not integer nanoseconds",
-            path=path,
-            line=lines[bad],
-            field="timestamp_ns",
-        ) from None
+    t_ns = np.empty(len(texts), dtype=np.int64)
+    for i, text in enumerate(texts):
+        try:
+            value = int(text)
+        except ValueError:
+            raise InputError(
+                f"{text!r} is not integer nanoseconds", path=path, line=lines[i], field="timestamp_ns"
+            ) from None
+        if not _INT64_MIN <= value <= _INT64_MAX:
+            raise InputError(
+                f"{text!r} is outside the range of int64 nanoseconds",
+                path=path,
+                line=lines[i],
+                field="timestamp_ns",
+            )
+        t_ns[i] = value
     quats_xyzw = rows[:, [5, 6, 7, 4]]
     return _build(
         path,

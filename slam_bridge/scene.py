@@ -24,6 +24,7 @@ import numpy as np
 
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.transforms import check_rigid
 
 SCENE_FILE = "scene.json"
 SPARSE_POINTS_FILE = "sparse_points.ply"
@@ -59,13 +60,27 @@ class Scene:
         image = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if image is None:
             raise InputError("cannot read keyframe image", path=path)
+        want = (self.camera.height, self.camera.width)
+        if image.shape[:2] != want:  # it would be trained against the wrong pixels
+            raise InputError(
+                f"image is {image.shape[1]}x{image.shape[0]}, the scene's camera {want[1]}x{want[0]}",
+                path=path,
+                field="size",
+            )
         return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
     def depth(self, keyframe: Keyframe) -> np.ndarray:
         """``(H, W)`` float32 LiDAR depth in metres, 0 where there is no return."""
-        return _load_array(
+        depth = _load_array(
             self.root / "depth" / f"{keyframe.name}.npy", (self.camera.height, self.camera.width)
         )
+        if depth.size and not float(depth.min()) >= 0:  # NaN compares False too
+            raise InputError(
+                "depth holds negative or NaN values (0 marks no return)",
+                path=self.root / "depth" / f"{keyframe.name}.npy",
+                field="depth",
+            )
+        return depth
 
     def normals(self, keyframe: Keyframe) -> np.ndarray:
         """``(H, W, 3)`` float32 camera-frame normal prior, zeros where there is none."""
@@ -90,13 +105,19 @@ class Scene:
 
 
 def _load_array(path: Path, shape: tuple[int, ...]) -> np.ndarray:
+    """A numeric ``.npy`` of ``shape`` as float32, finite everywhere."""
     try:
         array = np.load(path)
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError) as exc:
         raise InputError(f"cannot read array ({exc})", path=path) from None
     if array.shape != shape:
-        raise InputError(f"expected shape {shape}, got {array.shape}", path=path)
-    return array.astype(np.float32, copy=False)
+        raise InputError(f"expected shape {shape}, got {array.shape}", path=path, field="shape")
+    if not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
+        raise InputError(f"expected numbers, got dtype {array.dtype}", path=path, field="dtype")
+    array = array.astype(np.float32, copy=False)
+    if not np.all(np.isfinite(array)):
+        raise InputError("holds NaN or Inf (0 marks no data)", path=path, field="values")
+    return array
 
 
 def write_scene_index(
@@ -131,19 +152,44 @@ def load_scene(root: str | Path) -> Scene:
         data = json.loads(index.read_text())
     except OSError:
         raise InputError("no scene.json: not a scene folder (make one with lts prepare)", path=root) from None
+    except UnicodeDecodeError:
+        raise InputError("not a text file (expected JSON)", path=index) from None
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON ({exc})", path=index) from None
+    if not isinstance(data, dict):
+        raise InputError("expected a JSON object with camera and keyframes", path=index)
     camera = CameraModel.from_dict(data.get("camera"), path=str(index))
+    if camera.model != "pinhole" or np.any(camera.dist):
+        raise InputError(
+            "a scene's images are undistorted: expected a pinhole camera without distortion",
+            path=index,
+            field="camera",
+        )
+    entries = data.get("keyframes") or []
+    if not isinstance(entries, list):
+        raise InputError(f"expected a list, got {type(entries).__name__}", path=index, field="keyframes")
     keyframes = []
-    for i, entry in enumerate(data.get("keyframes") or []):
+    for i, entry in enumerate(entries):
         try:
-            T = np.asarray(entry["T_world_cam"], dtype=np.float64)
-            keyframe = Keyframe(str(entry["name"]), int(entry["t_ns"]), T, entry["split"])
+            t_ns = entry["t_ns"]
+            if isinstance(t_ns, float) and not t_ns.is_integer():
+                raise ValueError(f"t_ns {t_ns} is not whole nanoseconds")
+            keyframe = Keyframe(str(entry["name"]), int(t_ns), entry["T_world_cam"], entry["split"])
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"keyframe {i} is malformed ({exc})", path=index, field="keyframes") from None
-        if T.shape != (4, 4) or keyframe.split not in ("train", "test"):
-            raise InputError(f"keyframe {i}: bad pose shape or split", path=index, field="keyframes")
-        keyframes.append(keyframe)
+        if keyframe.split not in ("train", "test"):
+            raise InputError(
+                f"keyframe {i}: split {keyframe.split!r}; expected train or test",
+                path=index,
+                field="keyframes",
+            )
+        name = keyframe.name
+        if not name or name in (".", "..") or "/" in name or "\\" in name:
+            raise InputError(
+                f"keyframe {i}: name {name!r} is not a plain file name", path=index, field="keyframes"
+            )
+        T = check_rigid(keyframe.T_world_cam, field=f"keyframes[{i}].T_world_cam", path=str(index))
+        keyframes.append(Keyframe(name, keyframe.t_ns, T, keyframe.split))
     if not keyframes:
         raise InputError("no keyframes", path=index, field="keyframes")
     sparse = data.get("sparse_points")

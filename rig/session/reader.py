@@ -12,11 +12,46 @@ from typing import Any
 from mcap.exceptions import McapError
 from mcap.records import Channel, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
+from zstandard import ZstdError
 
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.messages import Frame, ImuSample, Scan
 from rig.session import ros_messages as rm
+
+#: What reading a damaged MCAP raises: the reader's own errors, short reads, a length field too
+#: large for an index (OverflowError) or an allocation (MemoryError), a chunk that does not
+#: decompress (ZstdError) or whose CRC does not match (McapError).
+CORRUPTION_ERRORS: tuple[type[BaseException], ...] = (
+    McapError,
+    struct.error,
+    EOFError,
+    ValueError,
+    OverflowError,
+    MemoryError,
+    ZstdError,
+)
+
+
+class _Bounded:
+    """A binary file whose reads are clamped to the bytes left, so that a corrupt length field
+    gives a short read (reported as truncation) instead of a multi-gigabyte allocation."""
+
+    def __init__(self, f: Any, size: int) -> None:
+        self._f, self._size = f, size
+
+    def read(self, n: int = -1) -> bytes:
+        left = self._size - self._f.tell()
+        return self._f.read(left if n is None or n < 0 else max(0, min(n, left)))
+
+
+def mcap_records(f: Any, size: int) -> Iterator[Any]:
+    """Records of an open MCAP file of ``size`` bytes in file order, chunks unpacked and their
+    CRCs checked (a flipped byte in a chunk is an error rather than a garbled message); no record
+    may be longer than the file. Iterating raises one of :data:`CORRUPTION_ERRORS` where the
+    file is damaged or ends."""
+    reader = StreamReader(_Bounded(f, size), emit_chunks=False, validate_crcs=True, record_size_limit=size)
+    return reader.records
 
 
 @dataclass(frozen=True)
@@ -59,13 +94,12 @@ class SessionReader:
     def _records(self) -> Iterator[Any]:
         self.truncated = False
         with self.path.open("rb") as f:
-            reader = StreamReader(f, emit_chunks=False)
             saw_footer = False
             try:
-                for record in reader.records:
+                for record in mcap_records(f, self.path.stat().st_size):
                     saw_footer = saw_footer or isinstance(record, Footer)
                     yield record
-            except (McapError, struct.error, EOFError, ValueError) as exc:
+            except CORRUPTION_ERRORS as exc:
                 self.truncated = True
                 self.truncation_reason = f"{type(exc).__name__}: {exc}".strip()
                 return
@@ -98,7 +132,15 @@ class SessionReader:
                 schema = schemas.get(channel.schema_id)
                 if schema is None or channel.message_encoding != "cdr":
                     continue
-                msg = rm.deserialize(record.data, schema.name)
+                try:
+                    msg = rm.deserialize(record.data, schema.name)
+                except Exception as exc:  # rosbags raises assorted errors on malformed CDR
+                    raise InputError(
+                        f"message at log time {record.log_time} ns does not decode as {schema.name} "
+                        f"({type(exc).__name__}: {exc})",
+                        path=self.path,
+                        field=channel.topic,
+                    ) from None
                 device_clock = channel.metadata.get("stamp_clock", "device") == "device"
                 t_device = rm.stamp_ns(msg) if device_clock and hasattr(msg, "header") else None
                 yield SessionMessage(channel.topic, schema.name, int(record.log_time), t_device, msg)
@@ -125,17 +167,27 @@ class SessionReader:
                     entry.last_t = max(entry.last_t, t)
         return summary
 
-    def frames(self, topic: str) -> Iterator[Frame]:
+    def _converted(self, topic: str, convert: Any) -> Iterator[Any]:
         for m in self.messages([topic]):
-            yield rm.msg_to_frame(m.msg, m.msgtype, m.t_host, m.t_device, topic)
+            try:
+                yield convert(m)
+            except InputError as exc:  # the converters know the topic, not the file
+                raise InputError(
+                    f"{exc.reason} (message at log time {m.t_host} ns)",
+                    path=self.path,
+                    field=exc.field or topic,
+                ) from None
+
+    def frames(self, topic: str) -> Iterator[Frame]:
+        return self._converted(
+            topic, lambda m: rm.msg_to_frame(m.msg, m.msgtype, m.t_host, m.t_device, topic)
+        )
 
     def scans(self, topic: str) -> Iterator[Scan]:
-        for m in self.messages([topic]):
-            yield rm.msg_to_scan(m.msg, m.t_host, m.t_device, topic)
+        return self._converted(topic, lambda m: rm.msg_to_scan(m.msg, m.t_host, m.t_device, topic))
 
     def imu(self, topic: str) -> Iterator[ImuSample]:
-        for m in self.messages([topic]):
-            yield rm.msg_to_imu(m.msg, m.t_host, m.t_device, topic)
+        return self._converted(topic, lambda m: rm.msg_to_imu(m.msg, m.t_host, m.t_device, topic))
 
     def camera_model(self, topic: str) -> CameraModel:
         """The camera model of the first ``CameraInfo`` on ``topic``."""

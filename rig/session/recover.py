@@ -3,16 +3,14 @@
 from __future__ import annotations
 
 import json
-import struct
 from pathlib import Path
 from typing import Any
 
-from mcap.exceptions import McapError
 from mcap.records import Attachment, Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from rig.errors import InputError
+from rig.session.reader import CORRUPTION_ERRORS, mcap_records
 from rig.version import package_version
 
 RECOVERY_METADATA = "lidar_ts.recovery"
@@ -41,7 +39,7 @@ def recover(src: str | Path, dst: str | Path) -> dict[str, Any]:
         writer.start(profile="ros2", library=f"lidar-ts {package_version()} (recovered)")
         saw_footer = False
         try:
-            for record in StreamReader(fin, emit_chunks=False).records:
+            for record in mcap_records(fin, src.stat().st_size):
                 if isinstance(record, Schema) and record.id not in schema_ids:
                     schema_ids[record.id] = writer.register_schema(record.name, record.encoding, record.data)
                 elif isinstance(record, Channel) and record.id not in channel_ids:
@@ -69,7 +67,7 @@ def recover(src: str | Path, dst: str | Path) -> dict[str, Any]:
                     )
                     counts["attachments"] += 1
                 saw_footer = saw_footer or type(record).__name__ == "Footer"
-        except (McapError, struct.error, EOFError, ValueError) as exc:
+        except CORRUPTION_ERRORS as exc:
             truncated, reason = True, f"{type(exc).__name__}: {exc}".strip()
         if not truncated and not saw_footer:
             truncated, reason = True, "no footer"
