@@ -19,6 +19,8 @@ from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d
 from scipy.optimize import minimize_scalar
 
+from rig.errors import InputError
+
 GRID_STEP_S = 0.005
 #: Standard deviation (s) of the zero-lag smoothing of the LiDAR-clock signal.
 LIDAR_SMOOTHING_S = 0.02
@@ -101,14 +103,33 @@ def estimate_time_offset(
     Weak or uniform motion gives ``poorly constrained`` with the reason (the offset is then NaN
     when not even a coarse estimate exists).
     """
-    t_cam, w_cam = np.asarray(t_cam, float), np.asarray(w_cam, float)
-    t_lidar, w_lidar = np.asarray(t_lidar, float), np.asarray(w_lidar, float)
+    t_cam, w_cam = np.asarray(t_cam, float).reshape(-1), np.asarray(w_cam, float)
+    t_lidar, w_lidar = np.asarray(t_lidar, float).reshape(-1), np.asarray(w_lidar, float)
     w_cam, w_lidar = w_cam.reshape(-1, 3), w_lidar.reshape(-1, 3)
+    for name, values in (("t_cam", t_cam), ("w_cam", w_cam), ("t_lidar", t_lidar), ("w_lidar", w_lidar)):
+        if not np.all(np.isfinite(values)):
+            raise InputError("holds NaN or Inf", field=name)
+    if len(t_cam) != len(w_cam) or len(t_lidar) != len(w_lidar):
+        raise InputError(
+            f"{len(t_cam)} camera times for {len(w_cam)} samples, {len(t_lidar)} LiDAR times for "
+            f"{len(w_lidar)} samples",
+            field="angular velocity",
+        )
+    order = np.argsort(t_cam, kind="stable")  # np.interp below needs increasing times
+    t_cam, w_cam = t_cam[order], w_cam[order]
     speed_cam, speed_lidar = np.linalg.norm(w_cam, axis=1), np.linalg.norm(w_lidar, axis=1)
     speed_std = float(np.std(speed_cam)) if len(w_cam) else 0.0
     reasons = []
+    shared = int(np.count_nonzero((t_cam >= t_lidar.min()) & (t_cam <= t_lidar.max()))) if len(t_lidar) else 0
     if len(w_cam) < MIN_SAMPLES or len(w_lidar) < MIN_SAMPLES // 4:
         reasons.append(f"too few motion samples ({len(w_cam)} camera, {len(w_lidar)} LiDAR)")
+    elif shared < MIN_SAMPLES:
+        # Too short an overlap left the fine fit with (almost) no samples: it returned an
+        # arbitrary offset with a zero spread, verdict ok.
+        reasons.append(
+            f"camera and LiDAR motion overlap in time for only {shared} camera samples "
+            f"(need {MIN_SAMPLES}); do the two recordings cover the same time?"
+        )
     elif speed_std < MIN_SPEED_STD:
         reasons.append(
             f"motion too weak to observe: camera angular speed varies by {np.degrees(speed_std):.1f}°/s "

@@ -39,8 +39,16 @@ class GeometricMetrics:
 
 
 def sample_surface(mesh: trimesh.Trimesh, count: int = DEFAULT_SAMPLES, seed: int = 0) -> np.ndarray:
-    """``(count, 3)`` points uniformly distributed by area over the mesh surface (seeded)."""
-    if mesh.area <= 0:
+    """``(count, 3)`` points uniformly distributed by area over the mesh surface (seeded).
+
+    Raises:
+        InputError: ``count`` < 1, vertices that are not finite, or no surface area.
+    """
+    if int(count) < 1:
+        raise InputError(f"need at least one sample, got {count}", field="samples")
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise InputError("mesh vertices hold NaN or Inf", field="vertices")
+    if not mesh.area > 0:  # also an empty mesh (area 0)
         raise InputError("mesh has zero surface area", field="faces")
     points, _ = trimesh.sample.sample_surface(mesh, count, seed=seed)
     return np.asarray(points, dtype=np.float64)
@@ -108,14 +116,24 @@ def compare_point_sets(
     """Accuracy, completeness, Chamfer-L1 and precision/recall/F-score of two point sets ``(N, 3)``.
 
     Raises:
-        InputError: either set is empty (a metric of nothing would be a confident wrong number).
+        InputError: either set is empty (a metric of nothing would be a confident wrong number),
+            holds NaN/Inf or is not ``(N, 3)``, or the threshold is not a positive number.
     """
-    if threshold_m <= 0:
-        raise ValueError(f"threshold must be positive, got {threshold_m}")
-    if len(reconstructed) == 0:
+    if not (np.isfinite(threshold_m) and threshold_m > 0):
+        raise InputError(
+            f"threshold must be a positive number of metres, got {threshold_m}", field="threshold_m"
+        )
+    reconstructed = np.asarray(reconstructed, dtype=np.float64)
+    ground_truth = np.asarray(ground_truth, dtype=np.float64)
+    if reconstructed.size == 0:
         raise InputError("reconstruction has no points to compare", field="reconstructed")
-    if len(ground_truth) == 0:
+    if ground_truth.size == 0:
         raise InputError("ground truth has no points to compare (culled away?)", field="ground_truth")
+    for name, points in (("reconstructed", reconstructed), ("ground_truth", ground_truth)):
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise InputError(f"expected points of shape (N, 3), got {points.shape}", field=name)
+        if not np.all(np.isfinite(points)):
+            raise InputError("points hold NaN or Inf", field=name)
     to_gt, _ = cKDTree(ground_truth).query(reconstructed, workers=-1)
     to_rec, _ = cKDTree(reconstructed).query(ground_truth, workers=-1)
     precision = float(np.mean(to_gt < threshold_m))

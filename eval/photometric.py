@@ -17,6 +17,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from rig.errors import InputError
+
 #: SSIM window as in 3DGS evaluation (and scikit-image with ``gaussian_weights=True``).
 SSIM_WINDOW = 11
 SSIM_SIGMA = 1.5
@@ -37,21 +39,36 @@ def as_image_tensor(image: np.ndarray | torch.Tensor) -> torch.Tensor:
     if tensor.ndim == 3:
         tensor = tensor.unsqueeze(0)
     if tensor.ndim != 4:
-        raise ValueError(f"expected an image of shape (C, H, W) or (B, C, H, W), got {tuple(tensor.shape)}")
+        raise InputError(
+            f"expected an image of shape (C, H, W) or (B, C, H, W), got {tuple(tensor.shape)}", field="images"
+        )
     return tensor
 
 
 def _check_pair(a: torch.Tensor, b: torch.Tensor) -> None:
+    """Same shape, not empty, finite: a metric of NaN pixels would be NaN, one of no pixels a
+    mean of nothing (NaN too) — both are input errors, never numbers to report."""
     if a.shape != b.shape:
-        raise ValueError(f"images differ in shape: {tuple(a.shape)} vs {tuple(b.shape)}")
+        raise InputError(f"images differ in shape: {tuple(a.shape)} vs {tuple(b.shape)}", field="images")
+    if a.numel() == 0:
+        raise InputError(f"image is empty (shape {tuple(a.shape)})", field="images")
+    for name, image in (("rendered", a), ("target", b)):
+        if not bool(torch.isfinite(image).all()):
+            raise InputError("image holds NaN or Inf", field=name)
 
 
 def psnr(rendered: np.ndarray | torch.Tensor, target: np.ndarray | torch.Tensor) -> float:
-    """Peak signal-to-noise ratio in dB for data range 1 (``inf`` for identical images)."""
+    """Peak signal-to-noise ratio in dB for data range 1 (``math.inf`` for identical images,
+    never NaN: empty or non-finite images raise :class:`~rig.errors.InputError`)."""
     a, b = as_image_tensor(rendered), as_image_tensor(target)
     _check_pair(a, b)
-    mse = float(torch.mean((a - b) ** 2))
-    return math.inf if mse == 0.0 else -10.0 * math.log10(mse)
+    diff = a - b
+    peak = float(diff.abs().max())
+    if peak == 0.0:
+        return math.inf
+    # -10 log10(mean(d^2)) with the largest |d| taken out first: the squares of differences
+    # below ~1e-154 underflow to 0, which made two different images "identical" (inf dB).
+    return -20.0 * math.log10(peak) - 10.0 * math.log10(float(torch.mean((diff / peak) ** 2)))
 
 
 def _gaussian_window(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
@@ -98,12 +115,13 @@ def ssim(
     if border == "crop":
         pad = SSIM_WINDOW // 2
         if a.shape[-1] <= 2 * pad or a.shape[-2] <= 2 * pad:
-            raise ValueError(
-                f"image {tuple(a.shape[-2:])} is smaller than the {SSIM_WINDOW}x{SSIM_WINDOW} window"
+            raise InputError(
+                f"image {tuple(a.shape[-2:])} is smaller than the {SSIM_WINDOW}x{SSIM_WINDOW} window",
+                field="images",
             )
         values = values[..., pad:-pad, pad:-pad]
     elif border != "zero-pad":
-        raise ValueError(f"unknown border mode {border!r}; expected crop or zero-pad")
+        raise InputError(f"unknown border mode {border!r}; expected crop or zero-pad", field="border")
     return float(values.mean())
 
 

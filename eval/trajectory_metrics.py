@@ -11,9 +11,29 @@ from rig.trajectory import Trajectory
 from rig.transforms import make_transform
 
 
+def _matched(source: np.ndarray, target: np.ndarray, item: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Both arrays as float64 ``(N, *item)``, equally long and finite (an SVD of NaN does not
+    converge: a raw LinAlgError otherwise)."""
+    source, target = np.asarray(source, dtype=np.float64), np.asarray(target, dtype=np.float64)
+    for name, a in (("source", source), ("target", target)):
+        if a.ndim != 1 + len(item) or a.shape[1:] != item:
+            raise InputError(f"expected shape (N, {', '.join(map(str, item))}), got {a.shape}", field=name)
+        if not np.all(np.isfinite(a)):
+            raise InputError("holds NaN or Inf", field=name)
+    if len(source) != len(target):
+        raise InputError(f"{len(source)} source against {len(target)} target entries", field="trajectory")
+    return source, target
+
+
 def umeyama_alignment(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Rigid transform ``(4, 4)`` minimising ``Σ |T · source_i − target_i|²`` for points ``(N, 3)``
-    (Umeyama 1991, without scale)."""
+    (Umeyama 1991, without scale).
+
+    Positions on a line (or all at one point) leave the rotation about that line (or any
+    rotation) free: the residuals, and so the ATE, are still right, but the returned rotation is
+    one of many; use :func:`pose_alignment` when the transform itself matters.
+    """
+    source, target = _matched(source, target, (3,))
     if len(source) < 3:
         raise InputError("need at least 3 matched positions to align trajectories", field="trajectory")
     mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
@@ -32,6 +52,9 @@ def pose_alignment(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     line (a robot driving mostly straight), where a position-only fit leaves the rotation about
     that line free — and a small rotation error there moves distant map points by centimetres.
     """
+    source, target = _matched(source, target, (4, 4))
+    if len(source) < 1:
+        raise InputError("need at least one matched pose to align trajectories", field="trajectory")
     M = np.einsum("nij,nkj->ik", target[:, :3, :3], source[:, :3, :3])
     U, _, Vt = np.linalg.svd(M)
     D = np.eye(3)
