@@ -22,9 +22,9 @@ $(STAMP): pyproject.toml scripts/ensure_system_deps.sh
 	$(BIN)/python -c "import open3d, torch, cv2, rig, calib, slam_bridge, splat, eval" 
 	touch $(STAMP)
 
-# Runs the full demo once `lts demo` exists; until then says what exists (never a fake result).
+# The main job: simulate a room, record it through the mock devices, reconstruct and score it.
 demo: setup
-	@if $(BIN)/lts demo --help >/dev/null 2>&1; then $(BIN)/lts demo; else $(BIN)/python scripts/demo_plan.py; fi
+	$(BIN)/lts demo
 
 test: setup
 	$(BIN)/python -m pytest $(PYTEST_ARGS)

@@ -20,7 +20,7 @@ JSON_OPTION = typer.Option(False, "--json", help="Print one JSON object on stdou
 
 
 def _log(message: str) -> None:
-    console.print(message, highlight=False)
+    console.print(message, highlight=False, markup=False)
 
 
 def _finish(result: dict, json_out: bool) -> None:

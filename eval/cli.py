@@ -11,7 +11,9 @@ from __future__ import annotations
 import typer
 
 from calib import cli as calib_cli
+from eval import bench_cli, pipeline_cli
 from eval.mesh_eval_cli import eval_command
+from eval.stability import bench_stability_command
 from rig import trajectory_cli
 from rig.cli_support import VERSION_OPTION, run_app
 from rig.sim import cli as sim_cli
@@ -36,7 +38,13 @@ app.command("eval")(eval_command)
 app.add_typer(slam_cli.app, name="slam")
 app.command("prepare")(prepare_command)
 app.command("train")(train_command)
+app.command("reconstruct")(pipeline_cli.reconstruct_command)
+app.command("demo")(pipeline_cli.demo_command)
 app.add_typer(calib_cli.app, name="calibrate")
+splat_cli.bench_app.command("train")(bench_cli.bench_train_command)
+splat_cli.bench_app.command("ablation")(bench_cli.bench_ablation_command)
+splat_cli.bench_app.command("noise")(bench_cli.bench_noise_command)
+splat_cli.bench_app.command("stability")(bench_stability_command)
 app.add_typer(splat_cli.bench_app, name="bench")
 
 

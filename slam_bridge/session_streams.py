@@ -8,6 +8,7 @@ from pathlib import Path
 from rig.errors import InputError
 from rig.session import SessionReader
 from rig.session.ros_messages import CAMERA_INFO, COMPRESSED_IMAGE, IMAGE, POINT_CLOUD
+from rig.session.writer import DEFAULT_TOPICS
 
 
 @dataclass(frozen=True)
@@ -19,11 +20,15 @@ class SessionTopics:
     points: str
 
 
-def _only(candidates: list[str], kind: str, path: Path, chosen: str | None) -> str:
+def _only(candidates: list[str], kind: str, path: Path, chosen: str | None, default: str) -> str:
+    """The chosen topic, else the only candidate, else the recorder's default topic for this kind
+    (``rig record`` writes the 3D LiDAR to ``/lidar/points`` beside e.g. a 2D scanner's topic)."""
     if chosen is not None:
         if chosen not in candidates:
             raise InputError(f"no {kind} topic {chosen!r}; the session has {candidates or 'none'}", path=path)
         return chosen
+    if len(candidates) > 1 and default in candidates:
+        return default
     if len(candidates) != 1:
         raise InputError(
             f"expected one {kind} topic, found {len(candidates)} ({', '.join(candidates) or 'none'}); "
@@ -40,7 +45,7 @@ def find_topics(reader: SessionReader, image: str | None = None, points: str | N
     clouds = sorted(t for t, s in topics.items() if s.msgtype == POINT_CLOUD)
     infos = sorted(t for t, s in topics.items() if s.msgtype == CAMERA_INFO)
     return SessionTopics(
-        _only(images, "image", reader.path, image),
+        _only(images, "image", reader.path, image, DEFAULT_TOPICS["image"]),
         infos[0] if infos else None,
-        _only(clouds, "point cloud", reader.path, points),
+        _only(clouds, "point cloud", reader.path, points, DEFAULT_TOPICS["points"]),
     )

@@ -75,7 +75,7 @@ class TrainConfig(BaseModel):
     normal_noise: float = Field(0.02, gt=0, description="std of 1 - n·n_prior treated as noise")
     prune_opacity: float = Field(0.05, ge=0, lt=1)
     final_prune_opacity: float = Field(
-        0.5, ge=0, lt=1, description="before the opacity floor rises, triangles below this are removed"
+        0.2, ge=0, lt=1, description="before the opacity floor rises, triangles below this are removed"
     )
     prune_unseen: bool = Field(
         False,

@@ -239,3 +239,33 @@ def test_non_finite_steps_are_rejected_and_persistent_ones_stop_training(scene_d
     with pytest.raises(TrainingDivergedError, match="non-finite"):
         train(scene_dir, tmp_path / "b", _tiny_config(iterations=40, max_rejected_steps=5), progress=False,
               log=lambda *_: None)  # fmt: skip
+
+
+def test_lts_train_cli_summary_and_clear_errors(scene_dir, tmp_path):
+    from typer.testing import CliRunner
+
+    from eval.cli import app
+
+    runner = CliRunner()
+    run = tmp_path / "run"
+    args = [
+        "train",
+        str(scene_dir),
+        "--out",
+        str(run),
+        "--preset",
+        "fast",
+        "--iterations",
+        "20",
+        "--no-progress",
+    ]
+    done = runner.invoke(app, [*args, "--json"])
+    assert done.exit_code == 0, done.output
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    assert summary["iterations"] == 20 and summary["n_triangles"] > 0 and "test_psnr" in summary["test"]
+    again = runner.invoke(app, args)
+    assert again.exit_code == 2 and "--resume" in again.output
+    changed = runner.invoke(app, [*args[:-3], "--iterations", "30", "--resume"])
+    assert changed.exit_code == 2 and "iterations" in changed.output
+    bad = runner.invoke(app, ["train", str(tmp_path), "--out", str(tmp_path / "x")])
+    assert bad.exit_code == 2 and "scene.json" in bad.output

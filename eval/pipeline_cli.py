@@ -1,0 +1,121 @@
+"""``lts reconstruct`` and ``lts demo`` (mounted by eval/cli.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from rig.cli_support import console, emit_json
+
+SUMMARY_KEYS = ("psnr", "ssim", "lpips", "fscore", "precision", "recall", "chamfer_m", "hole_fraction_leaned",
+                "n_triangles", "train_seconds")  # fmt: skip
+
+
+def _log(message: str) -> None:
+    console.print(message, highlight=False, markup=False)
+
+
+def _summary(result, extra_stages=()) -> dict:
+    stages = [*extra_stages, *result.stages]
+    return {
+        **result.metrics,
+        "stages": {s.name: {"status": s.status, "seconds": s.seconds} for s in stages},
+        "report": str(result.run_dir / "train" / "report.html"),
+    }
+
+
+def _print_table(summary: dict) -> None:
+    from rich.table import Table
+
+    stages = Table(title="stages")
+    for column in ("stage", "status", "seconds"):
+        stages.add_column(column)
+    for name, s in summary["stages"].items():
+        stages.add_row(name, s["status"], f"{s['seconds']:.1f}")
+    console.print(stages)
+    metrics = Table(title="metrics")
+    metrics.add_column("metric")
+    metrics.add_column("value", justify="right")
+    for key in SUMMARY_KEYS:
+        value = summary.get(key)
+        metrics.add_row(
+            key, "—" if value is None else f"{value:.4g}" if isinstance(value, float) else str(value)
+        )
+    console.print(metrics)
+    console.print(f"report: {summary['report']}", highlight=False)
+
+
+def reconstruct_command(
+    session: Path = typer.Argument(..., help="Session .mcap (rig record, lts sim, or a converted bag)."),
+    out: Path = typer.Option(
+        ..., "--out", "-o", help="Run folder: calib.yaml, slam/, scene/, train/, report."
+    ),
+    calib: Path | None = typer.Option(None, "--calib", help="A finished calibration (skips lts calibrate)."),
+    init: Path | None = typer.Option(
+        None,
+        "--init",
+        help="A rough calibration (e.g. the rig's CAD values) for lts calibrate session to refine.",
+    ),
+    slam: Path | None = typer.Option(
+        None,
+        "--slam",
+        help="A mapper's output (ImMesh, PIN-SLAM, FAST-LIO or mesh + trajectory) to import "
+        "instead of running the fallback mapper.",
+    ),
+    gt: Path | None = typer.Option(
+        None, "--gt", help="Ground-truth folder (mesh.ply + trajectory.tum) to score against."
+    ),
+    method: str = typer.Option("ours", help="Training method (see lts train --help)."),
+    preset: str = typer.Option("default", help="Training preset: fast, default or paper."),
+    iterations: int | None = typer.Option(None, min=1, help="Override the preset's iteration count."),
+    device: str = typer.Option("cpu", help="cpu or cuda for training."),
+    seed: int = typer.Option(0, help="Training seed."),
+    json_out: bool = typer.Option(
+        False, "--json", help="Print the metrics and per-stage seconds as one JSON object."
+    ),
+) -> None:
+    """Calibrate, map (or import), prepare, train and evaluate one session.
+
+    Every stage writes into --out and is skipped on a rerun when its inputs and options are
+    unchanged, so a crash or Ctrl-C resumes where it stopped (training from its last checkpoint)
+    and changing a training option retrains without redoing calibration or mapping.
+    """
+    from eval.reconstruct import ReconstructOptions, StageFailedError, reconstruct
+
+    options = ReconstructOptions(
+        session, out, calib, init, slam, gt, method, preset, iterations, device, seed
+    )
+    try:
+        result = reconstruct(options, _log)
+    except StageFailedError as exc:
+        console.print(f"error: {exc}", highlight=False)
+        raise typer.Exit(1) from None
+    summary = _summary(result)
+    _print_table(summary)
+    if json_out:
+        emit_json(summary)
+
+
+def demo_command(
+    out: Path = typer.Option(Path("demo_out"), "--out", "-o", help="Where the scene, session and run go."),
+    quick: bool = typer.Option(
+        False, "--quick", help="The simulator's 3 s, 160x120 room and the fast preset."
+    ),
+    json_out: bool = typer.Option(
+        False, "--json", help="Print the metrics and per-stage seconds as one JSON object."
+    ),
+) -> None:
+    """Simulate a room, record it through the mock devices, reconstruct it and score it against the truth."""
+    from eval.demo import run_demo
+    from eval.reconstruct import StageFailedError
+
+    try:
+        result, demo_stages = run_demo(out, quick, _log)
+    except StageFailedError as exc:
+        console.print(f"error: {exc}", highlight=False)
+        raise typer.Exit(1) from None
+    summary = _summary(result, demo_stages)
+    _print_table(summary)
+    if json_out:
+        emit_json(summary)
