@@ -71,6 +71,9 @@ def reconstruct_command(
     iterations: int | None = typer.Option(None, min=1, help="Override the preset's iteration count."),
     device: str = typer.Option("cpu", help="cpu or cuda for training."),
     seed: int = typer.Option(0, help="Training seed."),
+    keyframe_interval: float | None = typer.Option(
+        None, "--keyframe-interval", help="Seconds between keyframes (lts prepare's default: 0.5)."
+    ),
     json_out: bool = typer.Option(
         False, "--json", help="Print the metrics and per-stage seconds as one JSON object."
     ),
@@ -84,7 +87,7 @@ def reconstruct_command(
     from eval.reconstruct import ReconstructOptions, StageFailedError, reconstruct
 
     options = ReconstructOptions(
-        session, out, calib, init, slam, gt, method, preset, iterations, device, seed
+        session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval
     )
     try:
         result = reconstruct(options, _log)

@@ -58,6 +58,7 @@ class ReconstructOptions:
     iterations: int | None = None
     device: str = "cpu"
     seed: int = 0
+    keyframe_interval_s: float | None = None
 
 
 @dataclass
@@ -116,8 +117,9 @@ class Pipeline:
                 field="calib",
             )
 
-    def _done(self, stage: str, print_: str) -> bool:
-        return self.manifest.get(stage) == print_
+    def _done(self, stage: str, print_: str, output: Path) -> bool:
+        """Finished with these inputs, and its output is still there."""
+        return self.manifest.get(stage) == print_ and output.exists()
 
     def _record(self, stage: str, print_: str) -> None:
         self.manifest[stage] = print_
@@ -134,13 +136,14 @@ class Pipeline:
         stage: str,
         command: list[str],
         inputs: list[Path],
+        output: Path,
         before: Callable[[], None] | None = None,
         resume_flag: str | None = None,
     ) -> StageRecord:
         """Run ``command`` unless the stage is up to date. ``resume_flag`` is appended (outside the
         fingerprint) when the stage's own files show an unfinished earlier attempt."""
         print_ = fingerprint(command, inputs)
-        if self._done(stage, print_):
+        if self._done(stage, print_, output):
             self.log(f"[{stage}] up to date, skipped")
             return StageRecord(stage, "skipped", 0.0)
         self._forget_from(stage)
@@ -167,7 +170,7 @@ class Pipeline:
         load_calibration(self.o.calib)
         target = self.run / "calib.yaml"
         print_ = fingerprint(["copy", str(self.o.calib)], [self.o.calib])
-        if self._done("calibrate", print_) and target.is_file():
+        if self._done("calibrate", print_, target):
             self.log("[calibrate] up to date, skipped")
             return StageRecord("calibrate", "skipped", 0.0)
         self._forget_from("calibrate")
@@ -223,15 +226,15 @@ class Pipeline:
                 "--init",
                 str(o.init),
             ]
-            result.stages.append(self._stage("calibrate", command, [o.session, o.init]))
+            result.stages.append(self._stage("calibrate", command, [o.session, o.init], calib))
 
         slam = run / "slam"
         if o.slam is not None:
             command = [_lts(), "slam", "import", str(o.slam), "--out", str(slam)]
-            result.stages.append(self._stage("slam", command, [o.slam]))
+            result.stages.append(self._stage("slam", command, [o.slam], slam / "mesh.ply"))
         else:
             command = [_lts(), "slam", "run", str(o.session), "--calib", str(calib), "--out", str(slam)]
-            result.stages.append(self._stage("slam", command, [o.session, calib]))
+            result.stages.append(self._stage("slam", command, [o.session, calib], slam / "mesh.ply"))
 
         scene = run / "scene"
         command = [
@@ -247,17 +250,22 @@ class Pipeline:
         ]
         if o.method == "tsplus":
             command.append("--sparse-points")
+        if o.keyframe_interval_s is not None:
+            command += ["--keyframe-interval", str(o.keyframe_interval_s)]
 
         def clear_scene() -> None:
             shutil.rmtree(scene, ignore_errors=True)
 
-        prepared = self._stage("prepare", command, [o.session, calib, slam], before=clear_scene)
+        prepared = self._stage(
+            "prepare", command, [o.session, calib, slam], scene / "scene.json", before=clear_scene
+        )
         result.stages.append(prepared)
 
         train = run / "train"
         self._set_aside_old_training(scene_changed=prepared.status == "ran")
         resume = "--resume" if (train / "checkpoints" / "last.pt").is_file() else None
-        result.stages.append(self._stage("train", self._train_command(), [scene], resume_flag=resume))
+        command = self._train_command()
+        result.stages.append(self._stage("train", command, [scene], train / "model.pt", resume_flag=resume))
 
         command = [_lts(), "eval", str(train), "--json"] + (["--gt", str(o.gt)] if o.gt is not None else [])
         started = time.perf_counter()

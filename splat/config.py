@@ -40,7 +40,7 @@ class TrainConfig(BaseModel):
     init_noise_m: float = Field(0.0, ge=0, description="Gaussian noise on warm-start vertices (robustness)")
     ground_fill: bool = True
     ground_cell_m: float = Field(0.15, gt=0)
-    lidar_init_points: int = Field(20_000, ge=4)
+    lidar_init_points: int = Field(2_000, ge=4, description="as many as the SfM points TS+ starts from")
 
     # Loss weights (Eq. 3): (1-λ) L1 + λ D-SSIM + β1 opacity + β2 normal + β3 depth + β4 distortion.
     lambda_dssim: float = Field(0.2, ge=0, le=1)

@@ -87,7 +87,8 @@ def fit_floor_plane(
     """The floor ``(4,)`` (unit normal up, ``n·x + d = 0``), or None when fewer than ``min_faces``
     support it: a RANSAC plane through the centroids of up-facing faces below every camera, then
     refitted to the LiDAR points ``(N, 3)`` within 15 cm of it when given — a TSDF surface seen at
-    grazing angles sits centimetres off the floor, the LiDAR returns themselves do not."""
+    grazing angles sits centimetres off the floor, the LiDAR returns themselves do not. With too
+    few such faces (a short recording), the LiDAR points below the cameras are searched alone."""
     up = _up_direction(poses_world_cam)
     normals = np.asarray(mesh.face_normals)
     centroids = np.asarray(mesh.triangles_center)
@@ -98,7 +99,12 @@ def fit_floor_plane(
     below = centroids @ up < lowest_camera - 0.1
     candidates = centroids[level & below]
     if len(candidates) < min_faces:
-        return None
+        if lidar is None or len(lidar) < 10 * min_faces:
+            return None
+        candidates = lidar[lidar @ up < lowest_camera - 0.1]
+        min_faces *= 10  # points, noisier than faces
+        if len(candidates) < min_faces:
+            return None
     plane, inliers = _ransac_plane(candidates, 0.03)
     if len(inliers) < min_faces:
         return None

@@ -26,3 +26,25 @@ def real_data() -> Path:
     if not REAL_DATA.is_dir():
         pytest.skip(f"real sensor data not found at {REAL_DATA}")
     return REAL_DATA
+
+
+@pytest.fixture
+def lts_cli(monkeypatch, capsys):
+    """Run ``lts ARGS...`` in this process as the console script does (one-line errors, exit
+    statuses); returns ``(status, stdout, stderr)``."""
+    import sys
+
+    from eval.cli import main
+
+    def run(*args) -> tuple[int, str, str]:
+        monkeypatch.setattr(sys, "argv", ["lts", *map(str, args)])
+        monkeypatch.setenv("COLUMNS", "400")
+        code = 0
+        try:
+            main()
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else 1
+        out, err = capsys.readouterr()
+        return code, out, err
+
+    return run

@@ -241,31 +241,16 @@ def test_non_finite_steps_are_rejected_and_persistent_ones_stop_training(scene_d
               log=lambda *_: None)  # fmt: skip
 
 
-def test_lts_train_cli_summary_and_clear_errors(scene_dir, tmp_path):
-    from typer.testing import CliRunner
-
-    from eval.cli import app
-
-    runner = CliRunner()
+def test_lts_train_cli_summary_and_clear_errors(scene_dir, tmp_path, lts_cli):
     run = tmp_path / "run"
-    args = [
-        "train",
-        str(scene_dir),
-        "--out",
-        str(run),
-        "--preset",
-        "fast",
-        "--iterations",
-        "20",
-        "--no-progress",
-    ]
-    done = runner.invoke(app, [*args, "--json"])
-    assert done.exit_code == 0, done.output
-    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    args = ["train", scene_dir, "--out", run, "--preset", "fast", "--iterations", 20, "--no-progress"]
+    code, out, err = lts_cli(*args, "--json")
+    assert code == 0, err
+    summary = json.loads(out.strip().splitlines()[-1])
     assert summary["iterations"] == 20 and summary["n_triangles"] > 0 and "test_psnr" in summary["test"]
-    again = runner.invoke(app, args)
-    assert again.exit_code == 2 and "--resume" in again.output
-    changed = runner.invoke(app, [*args[:-3], "--iterations", "30", "--resume"])
-    assert changed.exit_code == 2 and "iterations" in changed.output
-    bad = runner.invoke(app, ["train", str(tmp_path), "--out", str(tmp_path / "x")])
-    assert bad.exit_code == 2 and "scene.json" in bad.output
+    code, _, err = lts_cli(*args)
+    assert code == 2 and "--resume" in err
+    code, _, err = lts_cli(*args[:-3], "--iterations", 30, "--resume")
+    assert code == 2 and "iterations" in err
+    code, _, err = lts_cli("train", tmp_path, "--out", tmp_path / "x")
+    assert code == 2 and "scene.json" in err
