@@ -84,6 +84,39 @@ def load_ground_truth(scene: Scene, path: str | Path) -> GroundTruth:
     return GroundTruth(mesh, T_gt_world, rmse)
 
 
+@dataclass(frozen=True)
+class CulledSamples:
+    """Area-uniform samples of a reconstruction and of the ground truth inside the training
+    cameras' frusta, and which ground-truth samples some training camera actually sees.
+
+    Attributes:
+        reconstructed: ``(N, 3)`` reconstruction samples in the frusta.
+        ground_truth: ``(M, 3)`` ground-truth samples in the frusta.
+        visible: ``(M,)`` bool, not hidden from every training camera by other ground truth.
+    """
+
+    reconstructed: np.ndarray
+    ground_truth: np.ndarray
+    visible: np.ndarray
+
+
+def culled_samples(
+    reconstructed: trimesh.Trimesh,
+    scene: Scene,
+    truth: GroundTruth,
+    samples: int = DEFAULT_SAMPLES,
+    far_m: float = np.inf,
+) -> CulledSamples:
+    """Sample both meshes (seeds 0 and 1) and cull them to the union of the training frusta."""
+    poses = np.stack([k.T_world_cam for k in scene.split("train")])
+    rec_points = sample_surface(reconstructed, samples, seed=0)
+    gt_points = sample_surface(truth.mesh, samples, seed=1)
+    rec_points = rec_points[frustum_mask(rec_points, poses, scene.camera, far=far_m)]
+    gt_points = gt_points[frustum_mask(gt_points, poses, scene.camera, far=far_m)]
+    visible = visible_mask(gt_points, truth.mesh, poses, scene.camera, max_range_m=far_m)
+    return CulledSamples(rec_points, gt_points, visible)
+
+
 def compare_with_ground_truth(
     reconstructed: trimesh.Trimesh,
     scene: Scene,
@@ -101,12 +134,6 @@ def compare_with_ground_truth(
     ground truth (:func:`~eval.geometry.visible_mask`): the back of a box is in the frusta but no
     image shows it.
     """
-    poses = np.stack([k.T_world_cam for k in scene.split("train")])
-    rec_points = sample_surface(reconstructed, samples, seed=0)
-    gt_points = sample_surface(truth.mesh, samples, seed=1)
-    rec_points = rec_points[frustum_mask(rec_points, poses, scene.camera, far=far_m)]
-    if gt_cull == "visible":
-        gt_points = gt_points[visible_mask(gt_points, truth.mesh, poses, scene.camera, max_range_m=far_m)]
-    else:
-        gt_points = gt_points[frustum_mask(gt_points, poses, scene.camera, far=far_m)]
-    return compare_point_sets(rec_points, gt_points, threshold_m)
+    points = culled_samples(reconstructed, scene, truth, samples, far_m)
+    gt_points = points.ground_truth[points.visible] if gt_cull == "visible" else points.ground_truth
+    return compare_point_sets(points.reconstructed, gt_points, threshold_m)

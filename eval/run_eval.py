@@ -32,7 +32,7 @@ import torch
 import trimesh
 from scipy.spatial import cKDTree
 
-from eval.geometry import DEFAULT_SAMPLES, compare_point_sets, frustum_mask, sample_surface, visible_mask
+from eval.geometry import DEFAULT_SAMPLES, compare_point_sets
 from eval.leaned_views import hit_mask, leaned_poses, raycaster
 from eval.photometric import lpips, psnr, ssim
 from rig.errors import InputError
@@ -251,9 +251,11 @@ def _geometry(
     samples: int,
     metrics: dict,
 ) -> PointDistances:
-    from eval.ground_truth import compare_with_ground_truth
+    from eval.ground_truth import culled_samples
 
-    culled = compare_with_ground_truth(reconstructed, scene, truth, threshold_m, samples)
+    points = culled_samples(reconstructed, scene, truth, samples)
+    rec, gt, seen = points.reconstructed, points.ground_truth, points.visible
+    culled = compare_point_sets(rec, gt, threshold_m)
     metrics.update(
         chamfer_m=culled.chamfer_m,
         fscore=culled.fscore,
@@ -262,13 +264,6 @@ def _geometry(
         accuracy_m=culled.accuracy_m,
         completeness_m=culled.completeness_m,
     )
-    # The same samples (seeds of compare_with_ground_truth) for the visible-only variant and pictures.
-    poses = np.stack([k.T_world_cam for k in scene.split("train")])
-    rec = sample_surface(reconstructed, samples, seed=0)
-    gt = sample_surface(truth.mesh, samples, seed=1)
-    rec = rec[frustum_mask(rec, poses, scene.camera)]
-    gt = gt[frustum_mask(gt, poses, scene.camera)]
-    seen = visible_mask(gt, truth.mesh, poses, scene.camera)
     visible = compare_point_sets(rec, gt[seen], threshold_m)
     metrics.update(
         chamfer_visible_m=visible.chamfer_m,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,8 @@ from hypothesis import HealthCheck, settings
 
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 REAL_DATA = PROJECT_ROOT.parent / "shared" / "data" / "real"
+# Shared test helpers (console_script.py) import by name: the suite runs with --import-mode=importlib.
+sys.path.insert(0, str(Path(__file__).parent))
 
 # "ci" keeps property tests short enough for the suite's time budget; "long" is for bug hunts:
 #   HYPOTHESIS_PROFILE=long .venv/bin/pytest
@@ -30,21 +33,10 @@ def real_data() -> Path:
 
 @pytest.fixture
 def lts_cli(monkeypatch, capsys):
-    """Run ``lts ARGS...`` in this process as the console script does (one-line errors, exit
-    statuses); returns ``(status, stdout, stderr)``."""
-    import sys
+    """``lts ARGS...`` run in this process as the console script does; returns
+    ``(status, stdout, stderr)``."""
+    from console_script import run_console_script
 
     from eval.cli import main
 
-    def run(*args) -> tuple[int, str, str]:
-        monkeypatch.setattr(sys, "argv", ["lts", *map(str, args)])
-        monkeypatch.setenv("COLUMNS", "400")
-        code = 0
-        try:
-            main()
-        except SystemExit as exc:
-            code = exc.code if isinstance(exc.code, int) else 1
-        out, err = capsys.readouterr()
-        return code, out, err
-
-    return run
+    return lambda *args: run_console_script(main, list(args), monkeypatch, capsys)

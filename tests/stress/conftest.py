@@ -18,6 +18,7 @@ from hypothesis import HealthCheck, settings
 
 sys.path.insert(0, str(Path(__file__).parent))  # --import-mode=importlib: make helpers importable
 
+
 _QUIET = [HealthCheck.too_slow, HealthCheck.function_scoped_fixture, HealthCheck.data_too_large]
 settings.register_profile(
     "stress-ci", max_examples=30, deadline=None, derandomize=True, suppress_health_check=_QUIET
@@ -32,22 +33,6 @@ STRESS = settings.get_profile("stress-long" if LONG else "stress-ci")
 def examples(n: int) -> settings:
     """Settings with ``n`` examples in CI (``50 n`` in the long profile)."""
     return settings(STRESS, max_examples=n * 50 if LONG else n)
-
-
-def run_cli(
-    main: Callable[[], None], args: list[str], monkeypatch: pytest.MonkeyPatch, capsys
-) -> tuple[int, str, str]:
-    """Run a console-script ``main`` (``rig.cli.main``/``eval.cli.main``) in this process, as the
-    installed entry point does; returns (exit status, stdout, stderr)."""
-    monkeypatch.setattr(sys, "argv", ["prog", *map(str, args)])
-    monkeypatch.setenv("COLUMNS", "400")  # one logical line is one printed line
-    code = 0
-    try:
-        main()
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_one_line_error(code: int, err: str, *needles: str) -> None:

@@ -11,7 +11,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from conftest import assert_one_line_error, examples, run_cli
+from conftest import assert_one_line_error, examples
+from console_script import run_console_script as run_cli
 from hypothesis import given
 from hypothesis import strategies as st
 
