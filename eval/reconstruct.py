@@ -33,6 +33,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from rig.atomic_file import write_atomic
 from rig.errors import InputError
 
 STAGES = ("calibrate", "slam", "prepare", "train", "evaluate")
@@ -123,9 +124,7 @@ class Pipeline:
 
     def _record(self, stage: str, print_: str) -> None:
         self.manifest[stage] = print_
-        tmp = self.manifest_path.with_name(MANIFEST + ".tmp")
-        tmp.write_text(json.dumps(self.manifest, indent=1))
-        tmp.replace(self.manifest_path)
+        write_atomic(self.manifest_path, json.dumps(self.manifest, indent=1))
 
     def _forget_from(self, stage: str) -> None:
         for later in STAGES[STAGES.index(stage) :]:

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from rig.atomic_file import write_atomic
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.plain import plain_data
@@ -73,7 +74,4 @@ def load_calibration(path: str | Path) -> Calibration:
 
 def save_calibration(calibration: Calibration, path: str | Path) -> None:
     """Write ``calib.yaml`` (atomically: a crash never leaves a half-written file)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(yaml.safe_dump(calibration.to_dict(), sort_keys=False, default_flow_style=None))
-    tmp.replace(path)
+    write_atomic(path, yaml.safe_dump(calibration.to_dict(), sort_keys=False, default_flow_style=None))

@@ -54,6 +54,10 @@ def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
         except click.ClickException as exc:  # usage errors carry their own message and exit code
             exc.show()
             sys.exit(exc.exit_code)
+        except OSError as exc:  # a full disk, a vanished folder: say which file, no traceback
+            where = f"{exc.filename}: " if exc.filename else ""
+            console.print(f"error: {where}{exc.strerror or exc}", highlight=False, markup=False)
+            sys.exit(1)
 
     return main
 

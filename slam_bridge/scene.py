@@ -22,6 +22,7 @@ from typing import Literal
 import cv2
 import numpy as np
 
+from rig.atomic_file import write_atomic
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.transforms import check_rigid
@@ -139,9 +140,7 @@ def write_scene_index(
         ],
         "source": source,
     }
-    tmp = root / (SCENE_FILE + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1))
-    tmp.replace(root / SCENE_FILE)
+    write_atomic(root / SCENE_FILE, json.dumps(data, indent=1))
 
 
 def load_scene(root: str | Path) -> Scene:

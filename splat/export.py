@@ -19,6 +19,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from rig.atomic_file import write_atomic
 from rig.errors import InputError
 from splat.model import TriangleModel
 
@@ -99,7 +100,7 @@ def export_mesh(
         collision.export(file_type="obj", include_normals=False),
     ]
     for path, blob in zip(paths, blobs, strict=True):
-        _write_atomic(path, blob)
+        write_atomic(path, blob)
     return ExportResult(
         paths=paths,
         n_triangles=n,
@@ -176,10 +177,3 @@ def _weld(points: np.ndarray, weld_m: float) -> tuple[np.ndarray, np.ndarray]:
     _, labels = connected_components(graph, directed=False)
     _, representative, index = np.unique(labels, return_index=True, return_inverse=True)
     return points[representative], index
-
-
-def _write_atomic(path: Path, data: bytes | str) -> None:
-    """Write ``data`` to a temporary file beside ``path`` and rename it into place."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data.encode() if isinstance(data, str) else data)
-    tmp.replace(path)

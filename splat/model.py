@@ -21,6 +21,7 @@ from pathlib import Path
 import torch
 from torch import Tensor
 
+from rig.atomic_file import atomic_path
 from rig.camera import CameraModel
 from rig.errors import InputError
 from splat.raster import RenderOutput, render
@@ -138,10 +139,8 @@ class TriangleModel:
 
 def save_model(model: TriangleModel, path: str | Path) -> None:
     """Write the model to ``path`` atomically (a temporary file renamed into place)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    torch.save(model.to_state(), tmp)
-    tmp.replace(path)
+    with atomic_path(path) as tmp:
+        torch.save(model.to_state(), tmp)
 
 
 def load_model(path: str | Path, device: torch.device | str = "cpu") -> TriangleModel:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from rig.atomic_file import atomic_path
 from rig.cli_support import console
 from rig.errors import InputError
 from slam_bridge.scene import Scene, load_scene
@@ -201,18 +202,15 @@ class Trainer:
     def save_checkpoint(self) -> None:
         path = layout.checkpoint_path(self.run_dir)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        torch.save(
-            {
-                "model": self.model.to_state(),
-                "optimizer": self.optimizer.state_dict(),
-                "stats": {k: getattr(self.stats, k) for k in ("depth", "normal", "max_weight")},
-                "generator": self.generator.get_state(),
-                "state": asdict(self.state),
-            },
-            tmp,
-        )
-        tmp.replace(path)
+        state = {
+            "model": self.model.to_state(),
+            "optimizer": self.optimizer.state_dict(),
+            "stats": {k: getattr(self.stats, k) for k in ("depth", "normal", "max_weight")},
+            "generator": self.generator.get_state(),
+            "state": asdict(self.state),
+        }
+        with atomic_path(path) as tmp:
+            torch.save(state, tmp)
 
     def _restore(self, path: Path) -> None:
         try:

@@ -254,3 +254,43 @@ def test_lts_train_cli_summary_and_clear_errors(scene_dir, tmp_path, lts_cli):
     assert code == 2 and "iterations" in err
     code, _, err = lts_cli("train", tmp_path, "--out", tmp_path / "x")
     assert code == 2 and "scene.json" in err
+
+
+def test_learning_rates_100x_too_high_never_leave_a_non_finite_model(scene_dir, tmp_path):
+    config = _tiny_config(
+        iterations=40, lr_vertices=0.03, lr_colors=2.0, lr_opacity=5.0, max_rejected_steps=5
+    )
+    try:
+        result = train(scene_dir, tmp_path / "run", config, progress=False, log=lambda *_: None)
+    except TrainingDivergedError:
+        return  # stopped with a clear error: acceptable
+    model = load_model(tmp_path / "run" / "model.pt")
+    assert all(bool(torch.isfinite(p).all()) for p in model.params.values())
+    assert np.isfinite(result.test["test_psnr"])
+
+
+def test_a_full_disk_during_export_leaves_no_partial_file(scene_dir, tmp_path):
+    import subprocess
+
+    model = TriangleModel.from_triangles(
+        torch.as_tensor(
+            decouple_and_scale(corner_mesh(40).vertices, corner_mesh(40).faces, 2.0), dtype=torch.float32
+        ),
+        torch.full((2 * 2 * 40 * 40, 3, 3), 0.5),
+        0.9,
+    )
+    disk = tmp_path / "tiny"
+    disk.mkdir()
+    mounted = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(disk)], capture_output=True
+    )
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a 64 KB tmpfs here ({mounted.stderr.decode().strip()}): not root?")
+    try:
+        from splat.export import export_mesh
+
+        with pytest.raises(OSError):
+            export_mesh(model, disk)
+        assert not list(disk.glob("*.tmp"))  # the partial file was removed
+    finally:
+        subprocess.run(["umount", "-l", str(disk)], capture_output=True)
