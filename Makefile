@@ -27,6 +27,7 @@ demo: setup
 	$(BIN)/lts demo
 
 test: setup
+	bash scripts/ensure_test_tools.sh
 	$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 # Everything but the slow end-to-end tests, for a quick local loop.
