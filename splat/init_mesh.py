@@ -63,15 +63,23 @@ def _up_direction(poses_world_cam: np.ndarray) -> np.ndarray:
     return -down / np.linalg.norm(down)
 
 
-def _ransac_plane(points: np.ndarray, threshold_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Unit-normal plane ``(4,)`` and inlier indices of a RANSAC fit (open3d, seeded), refined by
-    least squares on the inliers."""
-    import open3d as o3d
-
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    o3d.utility.random.seed(0)
-    _, inliers = cloud.segment_plane(distance_threshold=threshold_m, ransac_n=3, num_iterations=500)
-    inliers = np.asarray(inliers)
+def _ransac_plane(
+    points: np.ndarray, threshold_m: float, iterations: int = 500, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Unit-normal plane ``(4,)`` and inlier indices of a seeded RANSAC fit to ``(N, 3)`` points,
+    refined by least squares on the inliers. Written out here because open3d's parallel
+    ``segment_plane`` returned different planes from run to run despite its seed."""
+    rng = np.random.default_rng(seed)
+    sample = points if len(points) <= 20_000 else points[rng.choice(len(points), 20_000, replace=False)]
+    triples = sample[rng.integers(0, len(sample), (iterations, 3))]  # (I, 3, 3)
+    normals = np.cross(triples[:, 1] - triples[:, 0], triples[:, 2] - triples[:, 0])
+    length = np.linalg.norm(normals, axis=1)
+    ok = length > 1e-12
+    normals, triples = normals[ok] / length[ok, None], triples[ok]
+    offsets = -np.einsum("ij,ij->i", normals, triples[:, 0])
+    support = [(np.abs(sample @ n + d) < threshold_m).sum() for n, d in zip(normals, offsets, strict=True)]
+    best = int(np.argmax(support))
+    inliers = np.flatnonzero(np.abs(points @ normals[best] + offsets[best]) < threshold_m)
     centre = points[inliers].mean(axis=0)
     normal = np.linalg.svd(points[inliers] - centre, full_matrices=False)[2][2]
     return np.append(normal, -normal @ centre), inliers
