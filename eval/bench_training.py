@@ -23,6 +23,8 @@ from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import load_scene
 
+#: What each finished run reports in the log.
+SUMMARY_KEYS = ("train_seconds", "psnr", "fscore", "chamfer_m")
 #: The geometric columns of a row (frustum-culled ground truth, then visible-only ground truth).
 GEOMETRY_KEYS = ("fscore", "precision", "recall", "chamfer_m")
 
@@ -58,8 +60,9 @@ def virtual_scene(out: Path, quick: bool = True, seed: int = 0, log: Callable = 
     log("bench scene: fallback mapper")
     _lts("slam", "run", session, "--calib", calib, "--out", str(out / "slam"))
     log("bench scene: keyframes (with SfM points for the TS+ baseline)")
+    # The quick run lasts 3 s: one keyframe per 0.5 s would leave none to test on.
     _lts("prepare", session, "--calib", calib, "--slam", str(out / "slam"), "--out", str(scene_dir),
-         "--sparse-points")  # fmt: skip
+         "--sparse-points", *(["--keyframe-interval", "0.2"] if quick else []))  # fmt: skip
     return BenchScene(scene_dir, gt_dir)
 
 
@@ -118,9 +121,10 @@ def _run_all(
             shutil.rmtree(run_dir)
         log(f"training {name(config)} ...")
         rows.append(train_and_score(bench, config, run_dir))
-        row = rows[-1]
-        log(f"  {row['train_seconds']:.0f} s, PSNR {row['psnr']:.2f}, F {row['fscore']:.3f}, "
-            f"Chamfer {row['chamfer_m']:.3f} m")  # fmt: skip
+        log(
+            "  "
+            + ", ".join(f"{key} {rows[-1][key]:.3f}" for key in SUMMARY_KEYS if rows[-1][key] is not None)
+        )
     return rows
 
 
@@ -203,6 +207,13 @@ def _figure():
     return plt
 
 
+def _save(plt, fig, path: Path) -> None:
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def _plot_pareto(rows: list[dict], front: list[int], path: Path) -> None:
     plt = _figure()
     fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
@@ -222,10 +233,7 @@ def _plot_pareto(rows: list[dict], front: list[int], path: Path) -> None:
         )
     ax.set(xlabel="training time (s)", ylabel="Chamfer-L1 (m)", title="Run time against error")
     ax.legend()
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def _plot_bars(rows: list[dict], path: Path) -> None:
@@ -237,10 +245,7 @@ def _plot_bars(rows: list[dict], path: Path) -> None:
         ax.bar(names, [r[key] for r in rows], color=["#c0392b" if n == "ours" else "#7f8c8d" for n in names])
         ax.set_title(label)
         ax.tick_params(axis="x", rotation=45)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def _plot_noise(rows: list[dict], path: Path) -> None:
@@ -253,10 +258,7 @@ def _plot_noise(rows: list[dict], path: Path) -> None:
     twin.plot(noise, [r["psnr"] for r in rows], "s--", c="#2c3e50", label="PSNR")
     twin.set_ylabel("test PSNR (dB)")
     fig.legend(loc="lower left")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
+    _save(plt, fig, path)
 
 
 def resolve_scene(scene: Path | None, gt: Path | None, out: Path, quick: bool, log: Callable) -> BenchScene:

@@ -53,8 +53,19 @@ def test_demo_quick_reports_the_contract_metrics_within_bounds(demo):
 def test_reconstruct_killed_during_training_resumes_without_redoing_stages(demo, tmp_path):
     out, _ = demo
     run = tmp_path / "run"
-    command = [str(BIN / "lts"), "reconstruct", str(out / "session.mcap"), "--out", str(run),
-               "--init", str(out / "sim" / "ground_truth" / "calib.yaml"), "--preset", "fast"]  # fmt: skip
+    command = [
+        str(BIN / "lts"),
+        "reconstruct",
+        str(out / "session.mcap"),
+        "--out",
+        str(run),
+        "--init",
+        str(out / "sim" / "ground_truth" / "calib.yaml"),
+        "--preset",
+        "fast",
+        "--keyframe-interval",
+        "0.2",
+    ]  # fmt: skip  (3 s: at 0.5 s no keyframe is left to test on)
     process = subprocess.Popen(
         command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
     )

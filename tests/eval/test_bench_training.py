@@ -1,0 +1,24 @@
+"""Training benchmarks: the Pareto front and the plots (the benches themselves run in lts bench)."""
+
+from __future__ import annotations
+
+from eval.bench_training import _plot_bars, _plot_noise, _plot_pareto, pareto_front
+
+
+def _row(seconds: float, chamfer: float, **extra) -> dict:
+    return {"train_seconds": seconds, "chamfer_m": chamfer, "iterations": 100, "init_max_triangles": 4000,
+            "method": "ours", "psnr": 30.0, "fscore": 0.9, "init_noise_m": 0.0, **extra}  # fmt: skip
+
+
+def test_pareto_front_keeps_the_runs_nothing_beats_on_both_time_and_error():
+    rows = [_row(10, 0.05), _row(5, 0.08), _row(20, 0.05), _row(30, 0.03), _row(6, 0.09)]
+    assert pareto_front(rows) == [1, 0, 3]  # 20 s / 0.05 is beaten by 10 s / 0.05; 6 s / 0.09 by 5 s / 0.08
+
+
+def test_plots_are_written(tmp_path):
+    rows = [_row(1, 0.1), _row(2, 0.05, method="tsplus", init_noise_m=0.1)]
+    _plot_pareto(rows, pareto_front(rows), tmp_path / "sub" / "pareto.png")
+    _plot_bars(rows, tmp_path / "sub" / "bars.png")
+    _plot_noise(rows, tmp_path / "sub" / "noise.png")
+    for name in ("pareto.png", "bars.png", "noise.png"):
+        assert (tmp_path / "sub" / name).stat().st_size > 1000
