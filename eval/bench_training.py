@@ -8,6 +8,7 @@ protocol (:mod:`eval.ground_truth`), writes a JSON table and a PNG plot, and ret
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 import time
@@ -18,15 +19,13 @@ from typing import Any
 
 import numpy as np
 
-from eval.ground_truth import compare_with_ground_truth, load_ground_truth
+from eval.ground_truth import compare_culled, culled_samples, load_ground_truth
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import load_scene
 
 #: What each finished run reports in the log.
 SUMMARY_KEYS = ("train_seconds", "psnr", "fscore", "chamfer_m")
-#: The geometric columns of a row (frustum-culled ground truth, then visible-only ground truth).
-GEOMETRY_KEYS = ("fscore", "precision", "recall", "chamfer_m")
 
 
 @dataclass(frozen=True)
@@ -76,8 +75,7 @@ def train_and_score(bench: BenchScene, config, run_dir: Path, threshold_m: float
     scene = load_scene(bench.scene_dir)
     truth = load_ground_truth(scene, bench.gt_dir)
     mesh = load_mesh(run_dir / "mesh.ply")
-    frustum = compare_with_ground_truth(mesh, scene, truth, threshold_m)
-    visible = compare_with_ground_truth(mesh, scene, truth, threshold_m, gt_cull="visible")
+    geometry = compare_culled(culled_samples(mesh, scene, truth), threshold_m)
     return {
         "method": config.method,
         "preset": config.preset,
@@ -91,8 +89,7 @@ def train_and_score(bench: BenchScene, config, run_dir: Path, threshold_m: float
         "psnr": result.test.get("test_psnr"),
         "ssim": result.test.get("test_ssim"),
         "depth_l1_m": result.test.get("test_depth_l1_m"),
-        **{k: getattr(frustum, k) for k in GEOMETRY_KEYS},
-        **{f"{k}_visible": getattr(visible, k) for k in GEOMETRY_KEYS},
+        **geometry,
         "threshold_m": threshold_m,
     }
 
@@ -116,8 +113,6 @@ def _run_all(
     for config in configs:
         run_dir = out / "runs" / name(config)
         if run_dir.exists():
-            import shutil
-
             shutil.rmtree(run_dir)
         log(f"training {name(config)} ...")
         rows.append(train_and_score(bench, config, run_dir))

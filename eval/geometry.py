@@ -37,6 +37,18 @@ class GeometricMetrics:
     def to_dict(self) -> dict[str, float]:
         return asdict(self)
 
+    def named(self, variant: str = "") -> dict[str, float]:
+        """The metrics without the threshold, ``variant`` put into each name before its unit
+        (``chamfer_m`` → ``chamfer_visible_m``, ``fscore`` → ``fscore_visible``)."""
+        values = self.to_dict()
+        del values["threshold_m"]
+        if not variant:
+            return values
+        return {
+            (f"{name[:-2]}_{variant}_m" if name.endswith("_m") else f"{name}_{variant}"): value
+            for name, value in values.items()
+        }
+
 
 def sample_surface(mesh: trimesh.Trimesh, count: int = DEFAULT_SAMPLES, seed: int = 0) -> np.ndarray:
     """``(count, 3)`` points uniformly distributed by area over the mesh surface (seeded).

@@ -10,14 +10,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 import trimesh
 
 from eval.geometry import (
     DEFAULT_SAMPLES,
-    GeometricMetrics,
     compare_point_sets,
     frustum_mask,
     sample_surface,
@@ -117,23 +115,16 @@ def culled_samples(
     return CulledSamples(rec_points, gt_points, visible)
 
 
-def compare_with_ground_truth(
-    reconstructed: trimesh.Trimesh,
-    scene: Scene,
-    truth: GroundTruth,
-    threshold_m: float = 0.1,
-    samples: int = DEFAULT_SAMPLES,
-    far_m: float = np.inf,
-    gt_cull: Literal["frustum", "visible"] = "frustum",
-) -> GeometricMetrics:
-    """Geometric metrics of a mesh in the scene's world frame against the ground truth, both
-    culled to the union of the training cameras' frusta (the culled-mesh protocol of the Replica
-    evaluations): surfaces no training camera saw count neither for nor against a method.
-
-    ``gt_cull="visible"`` also drops ground truth hidden from every training camera behind other
-    ground truth (:func:`~eval.geometry.visible_mask`): the back of a box is in the frusta but no
-    image shows it.
-    """
-    points = culled_samples(reconstructed, scene, truth, samples, far_m)
-    gt_points = points.ground_truth[points.visible] if gt_cull == "visible" else points.ground_truth
-    return compare_point_sets(points.reconstructed, gt_points, threshold_m)
+def compare_culled(points: CulledSamples, threshold_m: float = 0.1) -> dict[str, float]:
+    """Geometric metrics of culled samples (the culled-mesh protocol of the Replica evaluations:
+    surfaces no training camera saw count neither for nor against a method): ``chamfer_m``,
+    ``fscore``, ... against the ground truth in the frusta, the same as ``chamfer_visible_m``,
+    ``fscore_visible``, ... against the ground truth some training camera sees (the back of a box
+    is in the frusta but no image shows it), and ``gt_visible_fraction``."""
+    frustum = compare_point_sets(points.reconstructed, points.ground_truth, threshold_m)
+    visible = compare_point_sets(points.reconstructed, points.ground_truth[points.visible], threshold_m)
+    return {
+        **frustum.named(),
+        **visible.named("visible"),
+        "gt_visible_fraction": float(points.visible.mean()),
+    }

@@ -32,7 +32,7 @@ import torch
 import trimesh
 from scipy.spatial import cKDTree
 
-from eval.geometry import DEFAULT_SAMPLES, compare_point_sets
+from eval.geometry import DEFAULT_SAMPLES
 from eval.leaned_views import hit_mask, leaned_poses, raycaster
 from eval.photometric import lpips, psnr, ssim
 from rig.errors import InputError
@@ -251,29 +251,11 @@ def _geometry(
     samples: int,
     metrics: dict,
 ) -> PointDistances:
-    from eval.ground_truth import culled_samples
+    from eval.ground_truth import compare_culled, culled_samples
 
     points = culled_samples(reconstructed, scene, truth, samples)
-    rec, gt, seen = points.reconstructed, points.ground_truth, points.visible
-    culled = compare_point_sets(rec, gt, threshold_m)
-    metrics.update(
-        chamfer_m=culled.chamfer_m,
-        fscore=culled.fscore,
-        precision=culled.precision,
-        recall=culled.recall,
-        accuracy_m=culled.accuracy_m,
-        completeness_m=culled.completeness_m,
-    )
-    visible = compare_point_sets(rec, gt[seen], threshold_m)
-    metrics.update(
-        chamfer_visible_m=visible.chamfer_m,
-        fscore_visible=visible.fscore,
-        precision_visible=visible.precision,
-        recall_visible=visible.recall,
-        accuracy_visible_m=visible.accuracy_m,
-        completeness_visible_m=visible.completeness_m,
-        gt_visible_fraction=float(seen.mean()),
-    )
+    metrics.update(compare_culled(points, threshold_m))
+    rec, gt = points.reconstructed, points.ground_truth
     to_gt, _ = cKDTree(gt).query(rec, workers=-1)
     to_rec, _ = cKDTree(rec).query(gt, workers=-1)
     return PointDistances(rec, to_gt, gt, to_rec, float(threshold_m), truth.T_gt_world)

@@ -80,3 +80,14 @@ def test_lts_eval_mesh_json(tmp_path: Path) -> None:
     metrics = json.loads(result.stdout)
     assert {"chamfer_m", "fscore", "precision", "recall", "threshold_m"} <= set(metrics)
     assert metrics["fscore"] == 1.0 and metrics["threshold_m"] == 0.1
+
+
+def test_named_metrics_put_the_variant_before_the_unit():
+    from eval.geometry import GeometricMetrics
+
+    metrics = GeometricMetrics(0.01, 0.02, 0.015, 0.9, 0.8, 0.85, 0.1)
+    assert metrics.named() == {"accuracy_m": 0.01, "completeness_m": 0.02, "chamfer_m": 0.015,
+                               "precision": 0.9, "recall": 0.8, "fscore": 0.85}  # fmt: skip
+    visible = {"accuracy_visible_m", "completeness_visible_m", "chamfer_visible_m"}
+    visible |= {"precision_visible", "recall_visible", "fscore_visible"}
+    assert set(metrics.named("visible")) == visible
