@@ -138,9 +138,11 @@ class Pipeline:
         output: Path,
         before: Callable[[], None] | None = None,
         resume_flag: str | None = None,
+        action: Callable[[], None] | None = None,
     ) -> StageRecord:
         """Run ``command`` unless the stage is up to date. ``resume_flag`` is appended (outside the
-        fingerprint) when the stage's own files show an unfinished earlier attempt."""
+        fingerprint) when the stage's own files show an unfinished earlier attempt. ``action``, when
+        given, does the stage's work in this process and ``command`` only names it."""
         print_ = fingerprint(command, inputs)
         if self._done(stage, print_, output):
             self.log(f"[{stage}] up to date, skipped")
@@ -151,9 +153,14 @@ class Pipeline:
         if resume_flag is not None:
             self.log(f"[{stage}] an earlier attempt stopped part-way: continuing from its checkpoint")
             command = [*command, resume_flag]
-        self.log(f"[{stage}] {' '.join(command[1:])}")
+        shown = command if action is not None else command[1:]  # lts commands without the lts path
+        self.log(f"[{stage}] {' '.join(shown)}")
         started = time.perf_counter()
-        code = subprocess.run(command).returncode
+        code = 0
+        if action is not None:
+            action()
+        else:
+            code = subprocess.run(command).returncode
         if code != 0:
             raise StageFailedError(
                 f"stage {stage} failed (exit {code}); earlier stages are kept in {self.run} and a rerun of "
@@ -161,22 +168,6 @@ class Pipeline:
             )
         self._record(stage, print_)
         return StageRecord(stage, "ran", round(time.perf_counter() - started, 2))
-
-    def _copy_calib(self) -> StageRecord:
-        """``--calib`` given: the calibration stage is a copy (validated by loading it)."""
-        from rig.calibration import load_calibration
-
-        load_calibration(self.o.calib)
-        target = self.run / "calib.yaml"
-        print_ = fingerprint(["copy", str(self.o.calib)], [self.o.calib])
-        if self._done("calibrate", print_, target):
-            self.log("[calibrate] up to date, skipped")
-            return StageRecord("calibrate", "skipped", 0.0)
-        self._forget_from("calibrate")
-        shutil.copyfile(self.o.calib, target)
-        self._record("calibrate", print_)
-        self.log(f"[calibrate] using {self.o.calib}")
-        return StageRecord("calibrate", "ran", 0.0)
 
     def _set_aside_old_training(self, scene_changed: bool) -> None:
         """A training folder made with other options or on an older scene is renamed, never deleted."""
@@ -194,10 +185,10 @@ class Pipeline:
         self.log(f"[train] options or scene changed: the earlier run is kept as train.previous-{n}")
 
     def _train_config(self):
-        from splat.config import make_config
+        from splat.config import config_from_options
 
-        extra = {} if self.o.iterations is None else {"iterations": self.o.iterations}
-        return make_config(self.o.method, self.o.preset, seed=self.o.seed, device=self.o.device, **extra)
+        o = self.o
+        return config_from_options(o.method, o.preset, seed=o.seed, device=o.device, iterations=o.iterations)
 
     def _train_command(self) -> list[str]:
         command = [_lts(), "train", str(self.run / "scene"), "--out", str(self.run / "train"),
@@ -213,7 +204,15 @@ class Pipeline:
         result = ReconstructResult(run)
         calib = run / "calib.yaml"
         if o.calib is not None:
-            result.stages.append(self._copy_calib())
+            from rig.calibration import load_calibration
+
+            load_calibration(o.calib)  # a bad file stops here, with its own error
+
+            def copy_calib() -> None:
+                shutil.copyfile(o.calib, calib)
+
+            command = ["copy", str(o.calib), str(calib)]
+            result.stages.append(self._stage("calibrate", command, [o.calib], calib, action=copy_calib))
         else:
             command = [
                 _lts(),

@@ -145,6 +145,26 @@ def make_config(method: str = "ours", preset: str = "default", **overrides: Any)
     return validated(values)
 
 
+def config_from_options(
+    method: str,
+    preset: str,
+    *,
+    seed: int = 0,
+    device: str = "cpu",
+    init_noise_m: float = 0.0,
+    iterations: int | None = None,
+    max_triangles: int | None = None,
+) -> TrainConfig:
+    """The config ``lts train`` builds from its options (None: the preset's value), so that
+    ``lts reconstruct`` can tell whether an existing run was made with the same ones."""
+    overrides: dict[str, Any] = {"seed": seed, "device": device, "init_noise_m": init_noise_m}
+    if iterations is not None:
+        overrides["iterations"] = iterations
+    if max_triangles is not None:
+        overrides["max_triangles"] = max_triangles
+    return make_config(method, preset, **overrides)
+
+
 def validated(values: dict[str, Any], path: Path | None = None) -> TrainConfig:
     """A :class:`TrainConfig` from plain values; errors name the file and the offending field."""
     try:

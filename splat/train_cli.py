@@ -42,15 +42,13 @@ def train_command(
     (every N iterations and on Ctrl-C), model.pt, summary.json, renders/ and mesh.ply/obj/glb +
     collision.ply. Ctrl-C saves a checkpoint; rerun with --resume to continue bit for bit.
     """
-    from splat.config import make_config
+    from splat.config import config_from_options
     from splat.trainer import TrainingDivergedError, TrainingInterruptedError, train
 
-    overrides = {"seed": seed, "device": device, "init_noise_m": init_noise}
-    if iterations is not None:
-        overrides["iterations"] = iterations
-    if max_triangles is not None:
-        overrides["max_triangles"] = max_triangles
-    config = make_config(method, preset, **overrides)
+    config = config_from_options(
+        method, preset, seed=seed, device=device, init_noise_m=init_noise, iterations=iterations,
+        max_triangles=max_triangles,
+    )  # fmt: skip
     try:
         result = train(scene, out, config, resume=resume, progress=progress)
     except TrainingInterruptedError as exc:

@@ -72,6 +72,7 @@ class _State:
     evals_without_gain: int = 0
     stopped_early: bool = False
     final_pruned: bool = False
+    last_test: dict[str, float] = field(default_factory=dict)
     skips: list[str] = field(default_factory=list)
     densification: list[dict] = field(default_factory=list)
 
@@ -172,13 +173,9 @@ class Trainer:
         if resume:
             if not checkpoint.is_file():
                 raise InputError("no checkpoint to resume from (start without --resume)", path=checkpoint)
-            previous = load_config(config_path)
-            if previous.model_dump(exclude={"device"}) != self.config.model_dump(exclude={"device"}):
-                changed = [
-                    k
-                    for k, v in previous.model_dump().items()
-                    if getattr(self.config, k) != v and k != "device"
-                ]
+            previous = load_config(config_path).model_dump(exclude={"device"})
+            changed = [k for k, v in previous.items() if getattr(self.config, k) != v]
+            if changed:
                 raise InputError(
                     f"the run was started with other settings ({', '.join(changed)}); resume with the same "
                     "options or train into a new --out",
@@ -225,10 +222,8 @@ class Trainer:
         self.generator.set_state(ckpt["generator"])
         self.state = _State(**ckpt["state"])
         # Keep only the evaluations the checkpoint had already made.
-        metrics = layout.metrics_path(self.run_dir)
-        lines = metrics.read_text().splitlines() if metrics.is_file() else []
-        kept = [line for line in lines if json.loads(line)["iteration"] <= self.state.iteration]
-        metrics.write_text("".join(line + "\n" for line in kept))
+        kept = [row for row in layout.read_metrics(self.run_dir) if row["iteration"] <= self.state.iteration]
+        layout.metrics_path(self.run_dir).write_text("".join(json.dumps(row) + "\n" for row in kept))
         self.log(f"resumed at iteration {self.state.iteration} with {self.model.n_triangles} triangles")
 
     # -- the loop -------------------------------------------------------------------------------
@@ -311,6 +306,7 @@ class Trainer:
         }
         with layout.metrics_path(self.run_dir).open("a") as f:
             f.write(json.dumps(line) + "\n")
+        self.state.last_test = test
         if "test_psnr" not in test or it < final_phase_start(self.config):
             return
         if test["test_psnr"] > self.state.best_psnr + self.config.min_improvement_db:
@@ -371,7 +367,8 @@ class Trainer:
 
     def _finish(self) -> TrainResult:
         save_model(self.model, layout.model_path(self.run_dir))
-        test = evaluate_views(self.model, self.test_views, self.scene.camera) if self.test_views else {}
+        # The loop evaluates its last iteration (the end, or where it stopped early).
+        test = self.state.last_test
         write_renders(self.model, self.test_views, self.scene.camera, layout.renders_dir(self.run_dir))
         export = _export(self.model, self.train_views, self.scene.camera, self.run_dir)
         c, s = self.config, self.state
