@@ -38,8 +38,12 @@ class TrainConfig(BaseModel):
     init_opacity: float = Field(0.7, gt=0, lt=1)
     init_max_triangles: int = Field(30_000, ge=100, description="warm-start mesh is simplified to this")
     init_noise_m: float = Field(0.0, ge=0, description="Gaussian noise on warm-start vertices (robustness)")
+    snap_to_lidar: bool = Field(True, description="warm-start vertices snapped onto their local LiDAR planes")
     ground_fill: bool = True
     ground_cell_m: float = Field(0.15, gt=0)
+    complete_hidden_floor: bool = Field(
+        True, description="with ground_fill: also the floor no camera sees where the room encloses it"
+    )
     lidar_init_points: int = Field(2_000, ge=4, description="as many as the SfM points TS+ starts from")
 
     # Loss weights (Eq. 3): (1-λ) L1 + λ D-SSIM + β1 opacity + β2 normal + β3 depth + β4 distortion.

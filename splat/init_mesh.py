@@ -4,7 +4,8 @@ Also the two preparations of the warm-start mesh that keep training within a CPU
 what a level-mounted LiDAR never sees: quadric simplification to a face budget, and a ground
 fill — the floor plane, fitted to the mesh, extended under the pixels of the training views that
 see no warm-start surface (a 360° LiDAR mounted level at robot height never sees the floor within a
-few metres, which the camera looks at all the time).
+few metres, which the camera looks at all the time) and completed where the room encloses it out
+of every camera's sight (:mod:`splat.floor_cells`).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 import trimesh
 
 from rig.camera import CameraModel
+from splat.floor_cells import PlaneGrid, enclosed_hidden_cells
 
 
 def decouple_and_scale(vertices: np.ndarray, faces: np.ndarray, scale: float = 2.0) -> np.ndarray:
@@ -46,12 +48,15 @@ class GroundFill:
     """Floor triangles added to a warm start, and why there are none when there are none.
 
     Attributes:
-        triangles: ``(G, 3, 3)`` world-frame floor triangles (two per grid cell).
+        triangles: ``(G, 3, 3)`` world-frame floor triangles the cameras see (two per grid cell).
+        hidden: ``(H, 3, 3)`` floor triangles no camera sees, completed where the room encloses
+            them (:func:`splat.floor_cells.enclosed_hidden_cells`).
         plane: ``(4,)`` ``n·x + d = 0`` with ``n`` pointing up, or None when no floor was found.
         reason: a one-line account (cells added, or why nothing was).
     """
 
     triangles: np.ndarray
+    hidden: np.ndarray
     plane: np.ndarray | None
     reason: str
 
@@ -150,20 +155,25 @@ def ground_fill(
     cell_m: float = 0.15,
     max_range_m: float = 8.0,
     pixel_stride: int = 4,
+    complete_hidden: bool = True,
+    closing_m: float = 0.6,
 ) -> GroundFill:
-    """Floor cells seen by the cameras through holes in the warm-start mesh.
+    """The floor the warm-start mesh lacks: cells the cameras see through its holes, and hidden
+    cells the room encloses.
 
     Rays of every ``pixel_stride``-th pixel of each view (``poses_world_cam`` ``(K, 4, 4)``) that
     hit no warm-start face before the floor plane are intersected with it (within
     ``max_range_m``), unless a wall stands between the camera and the point; each grid cell of
-    ``cell_m`` they land in becomes two triangles. ``lidar`` ``(N, 3)`` refines the plane.
+    ``cell_m`` they land in becomes two triangles. ``lidar`` ``(N, 3)`` refines the plane. With
+    ``complete_hidden``, the floor no camera sees is completed where the room encloses it (gaps
+    up to ``2 * closing_m`` bridged).
     """
     import open3d as o3d
 
     empty = np.zeros((0, 3, 3))
     plane = fit_floor_plane(mesh, poses_world_cam, lidar)
     if plane is None:
-        return GroundFill(empty, None, "no floor plane in the warm-start mesh; ground fill skipped")
+        return GroundFill(empty, empty, None, "no floor plane in the warm-start mesh; ground fill skipped")
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(
         o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
@@ -187,19 +197,14 @@ def ground_fill(
         points = origin + t_floor[through_hole, None] * dirs[through_hole]
         hits.append(points[~_behind_wall(scene, origin, points, n, cell_m)])
     points = np.concatenate(hits) if hits else np.zeros((0, 3))
-    if len(points) == 0:
-        return GroundFill(empty, plane, "the warm-start mesh covers the floor the cameras see; nothing added")
-    # Cells on the plane in an orthonormal basis (u, v) of it.
-    u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= np.linalg.norm(u)
-    v = np.cross(n, u)
-    cells = np.unique(np.floor(np.column_stack([points @ u, points @ v]) / cell_m).astype(np.int64), axis=0)
-    corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float64)
-    uv = (cells[:, None, :] + corners[None]) * cell_m  # (C, 4, 2)
-    origin_on_plane = -d * n
-    xyz = origin_on_plane + uv[..., :1] * u + uv[..., 1:] * v  # (C, 4, 3)
-    # Two triangles per cell, wound so that their normals point up.
-    triangles = np.concatenate([xyz[:, [0, 1, 2]], xyz[:, [0, 2, 3]]])
-    if np.cross(triangles[0, 1] - triangles[0, 0], triangles[0, 2] - triangles[0, 0]) @ n < 0:
-        triangles = triangles[:, ::-1]
-    return GroundFill(triangles, plane, f"{len(cells)} floor cells of {cell_m:g} m added under mesh holes")
+    grid = PlaneGrid(plane, cell_m)
+    seen = np.unique(grid.cells(points), axis=0) if len(points) else np.zeros((0, 2), dtype=np.int64)
+    hidden = enclosed_hidden_cells(mesh, grid, seen, closing_m) if complete_hidden else seen[:0]
+    reason = (
+        f"{len(seen)} floor cells of {cell_m:g} m added under mesh holes the cameras see through"
+        if len(seen)
+        else "the warm-start mesh covers the floor the cameras see"
+    )
+    if complete_hidden:
+        reason += f"; {len(hidden)} hidden cells completed where the room encloses the floor"
+    return GroundFill(grid.triangles(seen), grid.triangles(hidden), plane, reason)

@@ -8,12 +8,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+import trimesh
 
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import Keyframe, Scene
 from splat.config import TrainConfig
 from splat.init_mesh import decouple_and_scale, ground_fill, simplify
 from splat.lidar_points import lidar_points
+from splat.lidar_snap import snap_to_lidar
 from splat.model import TriangleModel
 from splat.views import View
 
@@ -30,6 +32,12 @@ class Initialisation:
     notes: list[str]
 
 
+def _scaled(triangles: np.ndarray, scale: float) -> np.ndarray:
+    """Independent triangles ``(F, 3, 3)`` scaled about their centroids."""
+    corners = triangles.reshape(-1, 3)
+    return decouple_and_scale(corners, np.arange(len(corners)).reshape(-1, 3), scale)
+
+
 def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Initialisation:
     mesh = load_mesh(scene.mesh_path)
     notes = []
@@ -43,15 +51,21 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         rng = np.random.default_rng(config.seed)
         vertices = vertices + rng.normal(0.0, config.init_noise_m, vertices.shape)
         notes.append(f"Gaussian noise of {config.init_noise_m:g} m added to the warm-start vertices")
-    triangles = decouple_and_scale(vertices, np.asarray(mesh.faces), config.init_scale)
+    if config.snap_to_lidar:
+        snap = snap_to_lidar(vertices, scene, train)
+        vertices = snap.vertices
+        notes.append(snap.reason)
+    mesh = trimesh.Trimesh(vertices, mesh.faces, process=False)
+    triangles = decouple_and_scale(mesh.vertices, np.asarray(mesh.faces), config.init_scale)
     if config.ground_fill:
         poses = np.stack([k.T_world_cam for k in train])
-        fill = ground_fill(mesh, scene.camera, poses, lidar_points(scene, train), config.ground_cell_m)
+        fill = ground_fill(
+            mesh, scene.camera, poses, lidar_points(scene, train), config.ground_cell_m, complete_hidden=config.complete_hidden_floor
+        )
         notes.append(fill.reason)
-        if len(fill.triangles):
-            corners = fill.triangles.reshape(-1, 3)
-            faces = np.arange(len(corners)).reshape(-1, 3)
-            triangles = np.concatenate([triangles, decouple_and_scale(corners, faces, config.init_scale)])
+        # Seen cells are scaled like the mesh faces, to overlap while they train; hidden ones never
+        # train, so they keep their size (scaled, they would reach past the walls).
+        triangles = np.concatenate([triangles, _scaled(fill.triangles, config.init_scale), fill.hidden])
     colors = None if config.init_color == "project" else np.full_like(triangles, GREY)
     return Initialisation(triangles, colors, notes)
 

@@ -1,0 +1,110 @@
+"""A square grid on the floor plane, and the floor cells hidden from every camera that the room
+still encloses (under and behind furniture).
+
+A warm-start mesh has floor only where the LiDAR or a camera saw it. The floor does not stop
+there: it runs on under boxes and tables and behind them up to the walls. Leaving it out costs
+recall against any ground truth culled to the camera frusta (which includes hidden surfaces), and a
+physics engine's probe falls through where the floor is missing. The completion is conservative:
+only cells that the warm-start structure (walls, object footprints, seen floor) closes in on every
+side are filled, never across an opening wider than ``2 * closing_m``, never under a wall (tall
+structure) and never over a pit (surface well below the plane).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy import ndimage
+
+#: Structure taller than this above the floor is a wall: no floor is completed under it.
+WALL_HEIGHT_M = 1.8
+
+
+@dataclass(frozen=True)
+class PlaneGrid:
+    """Square cells of ``cell_m`` on the plane ``n·x + d = 0`` (``plane`` ``(4,)``, unit ``n``)."""
+
+    plane: np.ndarray
+    cell_m: float
+
+    @property
+    def basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """Two orthonormal in-plane directions ``(3,)`` each."""
+        n = self.plane[:3]
+        u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        return u, np.cross(n, u)
+
+    def cells(self, points: np.ndarray) -> np.ndarray:
+        """Integer cell coordinates ``(N, 2)`` of points ``(N, 3)`` projected onto the plane."""
+        u, v = self.basis
+        return np.floor(np.column_stack([points @ u, points @ v]) / self.cell_m).astype(np.int64)
+
+    def heights(self, points: np.ndarray) -> np.ndarray:
+        """Signed heights ``(N,)`` of points ``(N, 3)`` above the plane."""
+        return points @ self.plane[:3] + self.plane[3]
+
+    def triangles(self, cells: np.ndarray) -> np.ndarray:
+        """Two triangles per cell ``(2C, 3, 3)``, wound so that their normals point up."""
+        if len(cells) == 0:
+            return np.zeros((0, 3, 3))
+        u, v = self.basis
+        n, d = self.plane[:3], self.plane[3]
+        corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float64)
+        uv = (cells[:, None, :] + corners[None]) * self.cell_m  # (C, 4, 2)
+        xyz = -d * n + uv[..., :1] * u + uv[..., 1:] * v  # (C, 4, 3)
+        triangles = np.concatenate([xyz[:, [0, 1, 2]], xyz[:, [0, 2, 3]]])
+        if np.cross(triangles[0, 1] - triangles[0, 0], triangles[0, 2] - triangles[0, 0]) @ n < 0:
+            triangles = triangles[:, ::-1]
+        return triangles
+
+
+def enclosed_hidden_cells(
+    mesh: trimesh.Trimesh,
+    grid: PlaneGrid,
+    seen_cells: np.ndarray,
+    closing_m: float = 0.6,
+    max_samples: int = 500_000,
+) -> np.ndarray:
+    """Floor cells ``(H, 2)`` that neither the mesh nor ``seen_cells`` ``(S, 2)`` (floor the cameras
+    saw through mesh holes) cover, but that the room closes in on.
+
+    The mesh is sampled by area (about nine samples per cell). Up-facing samples within half a cell
+    of the plane are floor; from there up to :data:`WALL_HEIGHT_M` they are structure (object footprints,
+    wall bases); higher ones on vertical faces mark walls (a ceiling does not); more than two cells below the plane mark a pit. Floor and
+    structure are closed morphologically over ``closing_m`` (bridging gaps in the LiDAR mesh), and
+    the holes of that footprint that are neither floor, wall nor pit are returned.
+    """
+    count = int(min(max_samples, max(1.0, mesh.area / (grid.cell_m / 3) ** 2)))
+    samples, faces = trimesh.sample.sample_surface(mesh, count, seed=0)
+    height = grid.heights(samples)
+    facing_up = np.asarray(mesh.face_normals)[faces] @ grid.plane[:3]
+    vertical = np.abs(facing_up) < 0.3
+    cells = grid.cells(samples)
+    floor = (np.abs(height) < grid.cell_m / 2) & (facing_up > 0.7)
+    structure = (height >= grid.cell_m / 2) & (height < WALL_HEIGHT_M)
+    wall = (height >= WALL_HEIGHT_M) & vertical
+    pit = height < -2 * grid.cell_m
+    covered = np.concatenate([cells[floor], seen_cells.reshape(-1, 2)])
+    footprint = np.concatenate([covered, cells[structure]])
+    if len(footprint) == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    radius = max(1, int(np.ceil(closing_m / grid.cell_m)))
+    low = footprint.min(axis=0) - radius - 1
+    shape = tuple(footprint.max(axis=0) - low + radius + 2)
+
+    def raster(c: np.ndarray) -> np.ndarray:
+        image = np.zeros(shape, dtype=bool)
+        inside = np.all((c >= low) & (c - low < shape), axis=1)
+        image[tuple((c[inside] - low).T)] = True
+        return image
+
+    disk = np.hypot(*np.mgrid[-radius : radius + 1, -radius : radius + 1]) <= radius
+    closed = ndimage.binary_closing(raster(footprint), structure=disk)
+    enclosed = ndimage.binary_fill_holes(closed)
+    # Closing the floor over one cell keeps cells that random sampling happened to miss out.
+    floor_cover = ndimage.binary_closing(raster(covered), structure=np.ones((3, 3), dtype=bool))
+    hidden = enclosed & ~floor_cover & ~raster(cells[wall]) & ~raster(cells[pit])
+    return np.argwhere(hidden) + low
