@@ -71,11 +71,12 @@ def enclosed_hidden_cells(
     """Floor cells ``(H, 2)`` that neither the mesh nor ``seen_cells`` ``(S, 2)`` (floor the cameras
     saw through mesh holes) cover, but that the room closes in on.
 
-    The mesh is sampled by area (about nine samples per cell). Up-facing samples within half a cell
-    of the plane are floor; from there up to :data:`WALL_HEIGHT_M` they are structure (object footprints,
-    wall bases); higher ones on vertical faces mark walls (a ceiling does not); more than two cells below the plane mark a pit. Floor and
-    structure are closed morphologically over ``closing_m`` (bridging gaps in the LiDAR mesh), and
-    the holes of that footprint that are neither floor, wall nor pit are returned.
+    The mesh is sampled by area (about nine samples per cell). Up-facing samples within half a
+    cell of the plane are floor; from there up to :data:`WALL_HEIGHT_M` they are structure
+    (object footprints, wall bases); higher ones on vertical faces mark walls (a ceiling does not);
+    more than two cells below the plane mark a pit. Floor and structure are closed morphologically
+    over ``closing_m`` (bridging gaps in the LiDAR mesh), and the holes of that footprint that are
+    neither floor, wall nor pit are returned.
     """
     count = int(min(max_samples, max(1.0, mesh.area / (grid.cell_m / 3) ** 2)))
     samples, faces = trimesh.sample.sample_surface(mesh, count, seed=0)

@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from rig.camera import CameraModel
+from rig.plane_fit import ransac_plane
 from splat.floor_cells import PlaneGrid, enclosed_hidden_cells
 
 
@@ -68,28 +69,6 @@ def _up_direction(poses_world_cam: np.ndarray) -> np.ndarray:
     return -down / np.linalg.norm(down)
 
 
-def _ransac_plane(
-    points: np.ndarray, threshold_m: float, iterations: int = 500, seed: int = 0
-) -> tuple[np.ndarray, np.ndarray]:
-    """Unit-normal plane ``(4,)`` and inlier indices of a seeded RANSAC fit to ``(N, 3)`` points,
-    refined by least squares on the inliers. Written out here because open3d's parallel
-    ``segment_plane`` returned different planes from run to run despite its seed."""
-    rng = np.random.default_rng(seed)
-    sample = points if len(points) <= 20_000 else points[rng.choice(len(points), 20_000, replace=False)]
-    triples = sample[rng.integers(0, len(sample), (iterations, 3))]  # (I, 3, 3)
-    normals = np.cross(triples[:, 1] - triples[:, 0], triples[:, 2] - triples[:, 0])
-    length = np.linalg.norm(normals, axis=1)
-    ok = length > 1e-12
-    normals, triples = normals[ok] / length[ok, None], triples[ok]
-    offsets = -np.einsum("ij,ij->i", normals, triples[:, 0])
-    support = [(np.abs(sample @ n + d) < threshold_m).sum() for n, d in zip(normals, offsets, strict=True)]
-    best = int(np.argmax(support))
-    inliers = np.flatnonzero(np.abs(points @ normals[best] + offsets[best]) < threshold_m)
-    centre = points[inliers].mean(axis=0)
-    normal = np.linalg.svd(points[inliers] - centre, full_matrices=False)[2][2]
-    return np.append(normal, -normal @ centre), inliers
-
-
 def fit_floor_plane(
     mesh: trimesh.Trimesh,
     poses_world_cam: np.ndarray,
@@ -118,13 +97,13 @@ def fit_floor_plane(
         min_faces *= 10  # points, noisier than faces
         if len(candidates) < min_faces:
             return None
-    plane, inliers = _ransac_plane(candidates, 0.03)
+    plane, inliers = ransac_plane(candidates, 0.03)
     if len(inliers) < min_faces:
         return None
     if lidar is not None:
         near = lidar[np.abs(lidar @ plane[:3] + plane[3]) < 0.15]
         if len(near) >= min_faces:
-            plane, _ = _ransac_plane(near, 0.03)
+            plane, _ = ransac_plane(near, 0.03)
     if plane[:3] @ up < 0:
         plane = -plane
     if plane[:3] @ up < np.cos(np.radians(max_tilt_deg)):

@@ -59,9 +59,9 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
     triangles = decouple_and_scale(mesh.vertices, np.asarray(mesh.faces), config.init_scale)
     if config.ground_fill:
         poses = np.stack([k.T_world_cam for k in train])
-        fill = ground_fill(
-            mesh, scene.camera, poses, lidar_points(scene, train), config.ground_cell_m, complete_hidden=config.complete_hidden_floor
-        )
+        lidar = lidar_points(scene, train)
+        complete = config.complete_hidden_floor
+        fill = ground_fill(mesh, scene.camera, poses, lidar, config.ground_cell_m, complete_hidden=complete)
         notes.append(fill.reason)
         # Seen cells are scaled like the mesh faces, to overlap while they train; hidden ones never
         # train, so they keep their size (scaled, they would reach past the walls).
