@@ -8,11 +8,13 @@ shared data types. Public API:
 - targetless extrinsic: :class:`ExtrinsicPair`, :func:`refine_extrinsic` → :class:`ExtrinsicResult`;
 - board extrinsic: :class:`BoardObservation`, :func:`board_observations`, :func:`calibrate_with_board`;
 - time offset: :func:`estimate_time_offset` → :class:`TimeOffsetResult` (from angular velocities);
-- sessions: :func:`calibrate_session` (time offset, then targetless extrinsic from a rough guess);
+- sessions: :func:`calibrate_session` (time offset, then the extrinsic from a rough guess: from a
+  chessboard, :class:`BoardGeometry` / :func:`board_geometry`, or targetless);
 - quality pictures: :func:`write_comparison`;
 - point clouds: :func:`read_point_cloud` (PCD ascii/binary/binary_compressed, KITTI ``.bin``).
 """
 
+from calib.board_session import BoardGeometry, board_geometry
 from calib.boards import BoardView, CharucoTarget, ChessboardTarget, detect_views
 from calib.intrinsics import IntrinsicsResult, calibrate_intrinsics
 from calib.overlay import write_comparison
@@ -23,6 +25,7 @@ from calib.targetless import ExtrinsicPair, ExtrinsicResult, pose_difference, re
 from calib.time_offset import TimeOffsetResult, estimate_time_offset
 
 __all__ = [
+    "BoardGeometry",
     "BoardObservation",
     "BoardView",
     "CharucoTarget",
@@ -32,6 +35,7 @@ __all__ = [
     "IntrinsicsResult",
     "PointCloud",
     "TimeOffsetResult",
+    "board_geometry",
     "board_observations",
     "calibrate_intrinsics",
     "calibrate_session",

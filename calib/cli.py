@@ -123,7 +123,7 @@ def extrinsic(
     (edges + mutual information), or from a chessboard in several poses with --board."""
     import cv2
 
-    from calib.boards import ChessboardTarget, parse_grid
+    from calib.board_session import board_geometry
     from calib.overlay import write_comparison
     from calib.pointcloud_io import read_point_cloud
     from calib.target_based import board_observations, calibrate_with_board
@@ -145,14 +145,9 @@ def extrinsic(
     if board is None:
         result = refine_extrinsic(pairs, start.camera, start.T_cam_lidar)
     else:
-        target = ChessboardTarget(*parse_grid(board, "--board"), square)
-        if outline is None:
-            half = ((target.cols + 1) * square / 2, (target.rows + 1) * square / 2)
-        else:
-            width_mm, height_mm = parse_grid(outline, "--outline")
-            half = (width_mm / 2000, height_mm / 2000)
-        observations = board_observations(pairs, start.camera, target)
-        result = calibrate_with_board(observations, half, start.T_cam_lidar)
+        geometry = board_geometry(board, square, outline)
+        observations = board_observations(pairs, start.camera, geometry.target)
+        result = calibrate_with_board(observations, geometry.half_size, start.T_cam_lidar)
     calibration = _merge_into(
         out if out.exists() else init,
         camera=start.camera,
@@ -195,7 +190,8 @@ def time_offset(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Camera-LiDAR time offset from motion (angular speed of camera vs LiDAR clock)."""
-    from calib.session_calib import calibrate_time, load_session
+    from calib.session_calib import calibrate_time
+    from calib.session_data import load_session
     from rig.calibration import load_calibration, save_calibration
     from rig.errors import InputError
 
@@ -227,14 +223,26 @@ def session_command(
         None, "--init", help="calib.yaml with a rough T_cam_lidar (enables the targetless extrinsic)."
     ),
     lidar_motion: str = typer.Option("auto", "--lidar-motion", help="imu, odometry or auto (see `time`)."),
+    board: str | None = typer.Option(
+        None,
+        "--board",
+        help="Target-based: chessboard COLSxROWS inner corners seen in the session (needs --init).",
+    ),
+    square: float = typer.Option(0.1, "--square", help="Target-based: square side (m)."),
+    outline: str | None = typer.Option(
+        None, "--outline", help="Target-based: board size WxH in mm (default: one square beyond the corners)."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
-    """Calibrate what a session supports: camera model, time offset, targetless extrinsic (with --init)."""
+    """Calibrate what a session supports: camera model, time offset, and with --init the extrinsic
+    (target-based with --board, else targetless)."""
+    from calib.board_session import board_geometry
     from calib.session_calib import calibrate_session
     from rig.calibration import load_calibration, save_calibration
 
     start = load_calibration(init) if init is not None else None
-    calibration, report = calibrate_session(session, start, lidar_motion)
+    geometry = board_geometry(board, square, outline) if board is not None else None
+    calibration, report = calibrate_session(session, start, lidar_motion, board=geometry)
     save_calibration(calibration, out)
     summary = {
         "T_cam_lidar": calibration.T_cam_lidar.tolist(),

@@ -1,4 +1,5 @@
-"""Calibrate from a recorded session: time offset from motion, then targetless extrinsic.
+"""Calibrate from a recorded session: time offset from motion, then the extrinsic — from a
+chessboard seen in the session (target-based) or refined from a rough guess (targetless).
 
 The camera model comes from the session's CameraInfo (or the initial calibration). The LiDAR
 motion signal is the gyro of the IMU on the LiDAR's clock when the session has one (Livox,
@@ -7,54 +8,23 @@ Ouster and the virtual rig carry it in the LiDAR), otherwise KISS-ICP odometry.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from calib.board_session import BoardGeometry, calibrate_board_session
 from calib.motion import camera_angular_velocity, imu_angular_velocity, lidar_angular_velocity
-from calib.pointcloud_io import PointCloud
+from calib.session_data import SessionData, frame_clouds, frame_times, load_session
 from calib.targetless import ExtrinsicPair, refine_extrinsic
 from calib.time_offset import TimeOffsetResult, estimate_time_offset
 from rig.calibration import Calibration
 from rig.camera import CameraModel
 from rig.errors import InputError
-from rig.messages import Frame, ImuSample, Scan
-from rig.session import DEFAULT_TOPICS, SessionReader
 
-#: Image + LiDAR pairs used for the extrinsic, and the LiDAR time window (s) around each frame:
-#: a whole sweep when the gyro can de-skew it, a short slice otherwise.
+#: Image + LiDAR pairs used for the targetless extrinsic.
 EXTRINSIC_PAIRS = 6
-POINT_WINDOW_S = {"deskewed": 0.05, "raw": 0.02}
 LIDAR_MOTION = ("auto", "imu", "odometry")
-
-
-@dataclass(eq=False)
-class SessionData:
-    """The messages calibration needs from one session."""
-
-    frames: list[Frame]
-    scans: list[Scan]
-    imu: list[ImuSample]
-    camera: CameraModel | None
-    path: Path
-    topics: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_TOPICS))
-
-
-def load_session(path: str | Path, topics: dict[str, str] | None = None) -> SessionData:
-    """Read frames, scans, IMU samples and the camera model (None if absent) from a session."""
-    topics = {**DEFAULT_TOPICS, **(topics or {})}
-    reader = SessionReader(path)
-    present = reader.topics()
-    frames = list(reader.frames(topics["image"])) if topics["image"] in present else []
-    scans = list(reader.scans(topics["points"])) if topics["points"] in present else []
-    imu = list(reader.imu(topics["imu"])) if topics["imu"] in present else []
-    camera = reader.camera_model(topics["camera_info"]) if topics["camera_info"] in present else None
-    if not frames:
-        raise InputError(f"no camera frames on {topics['image']}", path=path, field="topics")
-    return SessionData(frames, scans, imu, camera, Path(path), topics)
 
 
 def calibrate_time(
@@ -73,20 +43,22 @@ def calibrate_time(
     t_lid, w_lid = imu_angular_velocity(data.imu) if use_imu else lidar_angular_velocity(data.scans)
     result = estimate_time_offset(t_cam, w_cam, t_lid, w_lid)
     result.extra["lidar_motion"] = "imu gyro" if use_imu else "KISS-ICP odometry"
+    if not use_imu:
+        # Measured on the virtual rig's boards run (true 15 ms): KISS-ICP's angular velocity lags
+        # the true one by ~75 ms and the offset came out at 134 ± 3 ms. Until odometry timing is
+        # validated, its offset is reported but never given as ok.
+        result.verdict = "poorly constrained"
+        result.reasons.append(
+            "the LiDAR motion comes from KISS-ICP odometry, whose angular velocity lagged the truth by "
+            "~75 ms on the virtual rig: offset not trusted (record the LiDAR's IMU)"
+        )
     return result, (t_cam, np.linalg.norm(w_cam, axis=1))
 
 
-def extrinsic_pairs(
-    data: SessionData, time_offset_s: float, motion: tuple[np.ndarray, np.ndarray] | None = None
-) -> list[ExtrinsicPair]:
-    """``EXTRINSIC_PAIRS`` frames spread over the session, each with the LiDAR points measured
-    within ``POINT_WINDOW_S`` of it (LiDAR times shifted onto the camera clock). With an IMU on the
-    LiDAR, each point is rotated to where the LiDAR pointed at the frame's time (gyro rate at the
-    frame, constant over the window; the translation in 50 ms of driving is left). With the
-    camera's angular speed ``motion`` (times, speeds), each pair is the calmest frame of its stretch."""
-    if not data.scans:
-        return []
-    frame_t = np.array([f.t_host for f in data.frames], dtype=np.float64) * 1e-9
+def calm_frames(data: SessionData, motion: tuple[np.ndarray, np.ndarray] | None = None) -> list[int]:
+    """Indices of ``EXTRINSIC_PAIRS`` frames spread over the session; with the camera's angular
+    speed ``motion`` (times, speeds), each is the calmest frame of its stretch."""
+    frame_t = frame_times(data)
     chosen = []
     for stretch in np.array_split(np.arange(len(frame_t)), EXTRINSIC_PAIRS + 2)[1:-1]:
         if not len(stretch):
@@ -96,32 +68,20 @@ def extrinsic_pairs(
             speed = np.interp(frame_t[stretch], motion[0], motion[1])
             index = int(stretch[np.argmin(speed)])
         chosen.append(index)
-    scan_t = np.array([s.t_host for s in data.scans], dtype=np.float64) * 1e-9 + time_offset_s
-    gyro_t, gyro = imu_angular_velocity(data.imu)
-    gyro_t = gyro_t + time_offset_s
-    window = POINT_WINDOW_S["deskewed" if len(gyro_t) else "raw"]
-    pairs = []
-    for index in chosen:
-        t = frame_t[index]
-        points, intensity = [], []
-        for j in np.flatnonzero(np.abs(scan_t - t) < 0.5):
-            scan = data.scans[j]
-            times = scan.t_host * 1e-9 + time_offset_s + np.asarray(scan.point_time_s, dtype=np.float64)
-            near = np.abs(times - t) < window
-            pts = np.asarray(scan.points, dtype=np.float64)[near]
-            if len(gyro_t):
-                omega = np.array([np.interp(t, gyro_t, gyro[:, k]) for k in range(3)])
-                # Body rates: R(t)^T R(t_p) = exp(w (t_p - t)), applied to each point.
-                pts = Rotation.from_rotvec(np.outer(times[near] - t, omega)).apply(pts)
-            points.append(pts)
-            intensity.append(np.asarray(scan.intensity, dtype=np.float32)[near])
-        if points:
-            pairs.append(
-                ExtrinsicPair(
-                    data.frames[index].image, PointCloud(np.vstack(points), np.concatenate(intensity))
-                )
-            )
-    return pairs
+    return chosen
+
+
+def extrinsic_pairs(
+    data: SessionData, time_offset_s: float, motion: tuple[np.ndarray, np.ndarray] | None = None
+) -> list[ExtrinsicPair]:
+    """Image + LiDAR pairs at :func:`calm_frames` (clouds from :func:`frame_clouds`)."""
+    indices = calm_frames(data, motion)
+    clouds = frame_clouds(data, indices, time_offset_s) if data.scans else []
+    return [
+        ExtrinsicPair(data.frames[i].image, cloud)
+        for i, cloud in zip(indices, clouds, strict=True)
+        if cloud is not None
+    ]
 
 
 def calibrate_session(
@@ -129,9 +89,11 @@ def calibrate_session(
     init: Calibration | None = None,
     lidar_motion: str = "auto",
     topics: dict[str, str] | None = None,
+    board: BoardGeometry | None = None,
 ) -> tuple[Calibration, dict[str, Any]]:
-    """Everything a session supports: camera model, time offset and (with ``init``'s rough
-    ``T_cam_lidar``) the targetless extrinsic. Returns the calibration and a report."""
+    """Everything a session supports: camera model, time offset and, with ``init``'s rough
+    ``T_cam_lidar``, the extrinsic — from the chessboard ``board`` when given, else targetless.
+    Returns the calibration and a report."""
     data = load_session(path, topics)
     camera = data.camera or (init.camera if init is not None else None)
     if camera is None:
@@ -139,6 +101,12 @@ def calibrate_session(
             "the session has no CameraInfo and no --init calibration was given",
             path=path,
             field="camera_info",
+        )
+    if board is not None and init is None:
+        raise InputError(
+            "the board method needs a rough T_cam_lidar (--init) to find the board in the LiDAR clouds",
+            path=path,
+            field="--init",
         )
     report: dict[str, Any] = {"camera_source": "session CameraInfo" if data.camera else "initial calibration"}
     calibration = Calibration(
@@ -153,11 +121,14 @@ def calibrate_session(
     if init is None:
         report["extrinsic"] = {
             "verdict": "not run",
-            "reasons": ["targetless refinement needs a rough T_cam_lidar (--init)"],
+            "reasons": ["the extrinsic needs a rough T_cam_lidar (--init)"],
         }
     else:
-        pairs = extrinsic_pairs(data, calibration.time_offset_s, motion)
-        result = refine_extrinsic(pairs, camera, init.T_cam_lidar)
+        if board is not None:
+            result = calibrate_board_session(data, camera, board, calibration.time_offset_s, init.T_cam_lidar)
+        else:
+            pairs = extrinsic_pairs(data, calibration.time_offset_s, motion)
+            result = refine_extrinsic(pairs, camera, init.T_cam_lidar)
         report["extrinsic"] = result.to_json()
         calibration.T_cam_lidar = result.T_cam_lidar
     calibration.quality = {"time": report["time"], "extrinsic": report["extrinsic"]}

@@ -4,9 +4,11 @@ Per pose, the camera gives the board plane (from the board's corners and ``solve
 LiDAR gives it too (RANSAC plane among the points near the board). Planes are written
 ``n · p = d`` with ``d > 0`` (normal pointing away from the sensor), so both sensors' normals
 point the same way. The rotation aligns the normals (Kabsch), the translation solves
-``n_c · t = d_c - d_l``; a robust point-to-plane least-squares fit then refines all six degrees.
+``n_c · t = d_c - d_l``; a robust least-squares fit then refines all six degrees with two
+constraints per LiDAR board point: on the camera's board plane, and inside the board's outline.
 Fewer than three well-spread normals leave rotation or translation undetermined: the verdict
-then says so.
+then says so. The uncertainty is the larger of the Jacobian's (LiDAR noise) and a jackknife over
+the poses (which also sees the camera's board-pose errors).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 from scipy.spatial.transform import Rotation
 
 from calib.boards import BoardView, ChessboardTarget, detect_chessboard, to_gray
@@ -24,11 +26,14 @@ from calib.pointcloud_io import PointCloud
 from calib.targetless import ExtrinsicPair, ExtrinsicResult
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.plane_fit import ransac_plane
 from rig.transforms import invert, make_transform, transform_points
 
 #: RANSAC inlier distance (m) for the LiDAR board plane, and the fewest inliers accepted.
 PLANE_THRESHOLD_M = 0.02
 MIN_PLANE_POINTS = 30
+RANSAC_ITERATIONS = 500
+RANSAC_SUPPORT_POINTS = 5000
 #: Board points are searched this far (m) beyond the board's outline, predicted with the guess.
 SEARCH_MARGIN_M = 0.25
 #: Normals must spread: smallest / largest singular value of the stacked normals.
@@ -37,6 +42,9 @@ MIN_POSES = 3
 MAX_ROT_STD_DEG = 0.1
 MAX_TRANS_STD_M = 0.01
 HUBER_SCALE_M = 0.02
+#: Poses are split into this many groups (in the given order, so neighbouring frames go
+#: together) for the delete-a-group jackknife.
+JACKKNIFE_GROUPS = 8
 
 
 @dataclass(eq=False)
@@ -98,8 +106,6 @@ def board_points(
     board outline (``half_size`` = half width and height in metres about the corners' centre) as
     predicted by ``T_init``
     (the whole cloud when ``T_init`` is None, which suits clouds cropped to the board)."""
-    import open3d as o3d
-
     points = cloud.points
     if T_init is not None and len(points):
         in_board = transform_points(invert(T_cam_board) @ T_init, points)
@@ -112,12 +118,10 @@ def board_points(
         points = points[keep]
     if len(points) < MIN_PLANE_POINTS:
         return np.zeros((0, 3))
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    o3d.utility.random.seed(0)  # reproducible RANSAC
-    _, inliers = pcd.segment_plane(PLANE_THRESHOLD_M, 3, 500)
+    _, inliers = ransac_plane(points, PLANE_THRESHOLD_M, RANSAC_ITERATIONS, max_support=RANSAC_SUPPORT_POINTS)
     if len(inliers) < MIN_PLANE_POINTS:
         return np.zeros((0, 3))
-    return points[np.asarray(inliers)]
+    return points[inliers]
 
 
 def fit_plane(points: np.ndarray) -> Plane:
@@ -138,16 +142,54 @@ def closed_form(camera_planes: Sequence[Plane], lidar_planes: Sequence[Plane]) -
     return make_transform(R, t)
 
 
+@dataclass(frozen=True)
+class _FitPose:
+    """One board pose in the fit: the camera's board ``plane``, ``T_board_cam`` ``(4, 4)`` and
+    the LiDAR board ``points`` ``(M, 3)``."""
+
+    plane: Plane
+    T_board_cam: np.ndarray
+    points: np.ndarray
+
+
 def _residuals(
-    x: np.ndarray, T0: np.ndarray, planes: Sequence[Plane], points: Sequence[np.ndarray]
+    x: np.ndarray, T0: np.ndarray, poses: Sequence[_FitPose], half_size: tuple[float, float]
 ) -> np.ndarray:
+    """Point-to-plane distances, then each point's distance outside the board's outline along the
+    board's two axes (zero inside: beams find the edge only to within their spacing, so a point
+    says where the board is, never where it ends)."""
     T = make_transform(Rotation.from_rotvec(x[:3]).as_matrix(), x[3:]) @ T0
-    return np.concatenate(
-        [
-            transform_points(T, pts) @ plane.normal - plane.offset
-            for plane, pts in zip(planes, points, strict=True)
-        ]
-    )
+    cam = [transform_points(T, pose.points) for pose in poses]
+    plane = [pts @ pose.plane.normal - pose.plane.offset for pts, pose in zip(cam, poses, strict=True)]
+    outline = [
+        np.maximum(np.abs(transform_points(pose.T_board_cam, pts)[:, :2]) - half_size, 0.0).ravel()
+        for pts, pose in zip(cam, poses, strict=True)
+    ]
+    return np.concatenate(plane + outline)
+
+
+def _fit(
+    x0: np.ndarray, T0: np.ndarray, poses: Sequence[_FitPose], half_size: tuple[float, float]
+) -> OptimizeResult:
+    """Robust least squares from ``x0`` (rotation vector, translation about ``T0``)."""
+    return least_squares(_residuals, x0, args=(T0, poses, half_size), loss="huber", f_scale=HUBER_SCALE_M)
+
+
+def _jackknife_std(
+    x: np.ndarray, T0: np.ndarray, poses: Sequence[_FitPose], half_size: tuple[float, float]
+) -> tuple[float, float]:
+    """Rotation (degrees) and translation (m) standard deviations of the fit by a delete-a-group
+    jackknife over the poses. Unlike the Jacobian's, they include each pose's camera-side
+    error (board pose from a few pixels of corners), which is shared by all of that pose's
+    LiDAR points."""
+    groups = np.array_split(np.arange(len(poses)), min(JACKKNIFE_GROUPS, len(poses)))
+    estimates = []
+    for group in groups:
+        keep = np.setdiff1d(np.arange(len(poses)), group)
+        estimates.append(_fit(x, T0, [poses[i] for i in keep], half_size).x)
+    spread = np.asarray(estimates) - np.mean(estimates, axis=0)
+    cov = (len(groups) - 1) / len(groups) * spread.T @ spread
+    return float(np.degrees(np.sqrt(np.trace(cov[:3, :3])))), float(np.sqrt(np.trace(cov[3:, 3:])))
 
 
 def calibrate_with_board(
@@ -161,14 +203,14 @@ def calibrate_with_board(
 
     Raises :class:`InputError` when there is neither a guess nor enough well-spread poses.
     """
-    used, planes_c, planes_l, pts_l = [], [], [], []
+    used, poses, planes_l = [], [], []
     for obs in observations:
         pts = board_points(obs.cloud, obs.T_cam_board, half_size, T_init)
         if len(pts):
             used.append(obs.name)
-            planes_c.append(camera_plane(obs.T_cam_board))
+            poses.append(_FitPose(camera_plane(obs.T_cam_board), invert(obs.T_cam_board), pts))
             planes_l.append(fit_plane(pts))
-            pts_l.append(pts)
+    planes_c = [pose.plane for pose in poses]
     reasons = []
     normals = np.array([p.normal for p in planes_c]).reshape(-1, 3)
     sv = np.linalg.svd(normals, compute_uv=False) if len(normals) else np.zeros(1)
@@ -196,12 +238,11 @@ def calibrate_with_board(
             0,
             method="target-based (board planes)",
         )
-    fit = least_squares(
-        _residuals, np.zeros(6), args=(T0, planes_c, pts_l), loss="huber", f_scale=HUBER_SCALE_M
-    )
+    fit = _fit(np.zeros(6), T0, poses, half_size)
     T = make_transform(Rotation.from_rotvec(fit.x[:3]).as_matrix(), fit.x[3:]) @ T0
-    residuals = fit.fun
-    dof = max(len(residuals) - 6, 1)
+    n_points = sum(len(pose.points) for pose in poses)
+    residuals, outline = fit.fun[:n_points], fit.fun[n_points:]
+    dof = max(n_points - 6, 1)
     sigma2 = float(residuals @ residuals) / dof
     jtj = fit.jac.T @ fit.jac
     if np.linalg.matrix_rank(jtj, tol=1e-9 * max(np.abs(jtj).max(), 1e-300)) < 6:
@@ -210,6 +251,9 @@ def calibrate_with_board(
         cov = sigma2 * np.linalg.inv(jtj)
         rot_std = float(np.degrees(np.sqrt(np.trace(cov[:3, :3]))))
         trans_std = float(np.sqrt(np.trace(cov[3:, 3:])))
+    if not reasons:
+        jack_rot, jack_trans = _jackknife_std(fit.x, T0, poses, half_size)
+        rot_std, trans_std = max(rot_std, jack_rot), max(trans_std, jack_trans)
     if not reasons and (rot_std > MAX_ROT_STD_DEG or trans_std > MAX_TRANS_STD_M):
         reasons.append(
             f"uncertainty ±{rot_std:.3f}° ±{trans_std * 100:.2f} cm above "
@@ -225,8 +269,8 @@ def calibrate_with_board(
         translation_std_m=trans_std,
         mutual_information={},
         edge_score={},
-        n_points=int(sum(len(p) for p in pts_l)),
-        n_edge_points=0,
+        n_points=n_points,
+        n_edge_points=int(np.count_nonzero(outline.reshape(-1, 2).any(axis=1))),
         method="target-based (board planes)",
         extra={"poses_used": used, "plane_rms_m": rms, "normal_spread": spread},
     )
@@ -238,8 +282,18 @@ def board_observations(
     """Board observations from image + cloud pairs; images where the board is not found are skipped."""
     observations = []
     for i, pair in enumerate(pairs):
-        corners = detect_chessboard(to_gray(pair.image), target.cols, target.rows)
-        if corners is not None:
-            view = BoardView(f"pair {i}", corners, target.object_points())
-            observations.append(BoardObservation(board_pose(view, camera), pair.cloud, view.name))
+        T_cam_board = detect_board_pose(pair.image, camera, target, f"pair {i}")
+        if T_cam_board is not None:
+            observations.append(BoardObservation(T_cam_board, pair.cloud, f"pair {i}"))
     return observations
+
+
+def detect_board_pose(
+    image: np.ndarray, camera: CameraModel, target: ChessboardTarget, name: str
+) -> np.ndarray | None:
+    """``T_cam_board`` ``(4, 4)`` of the chessboard in ``image`` (``name`` labels errors), or None
+    when the board is not found."""
+    corners = detect_chessboard(to_gray(image), target.cols, target.rows)
+    if corners is None:
+        return None
+    return board_pose(BoardView(name, corners, target.object_points()), camera)

@@ -11,7 +11,11 @@ from rig.cli_support import console, emit_json
 
 def sim(
     out_dir: Path = typer.Argument(..., help="Output folder: session.mcap and ground_truth/."),
-    preset: str = typer.Option("room", "--preset", help="Scene preset: room, corridor or stairs."),
+    preset: str = typer.Option(
+        "room",
+        "--preset",
+        help="Scene preset: room, corridor, stairs or boards (four chessboards, for calibration).",
+    ),
     mesh: Path | None = typer.Option(
         None, "--mesh", help="User mesh (PLY/OBJ/GLB, vertex colours or texture)."
     ),

@@ -15,6 +15,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from rig.errors import InputError
+from rig.sim.board import BoardSpec, board_mesh
 from rig.sim.textures import MATERIAL_IDS
 from rig.transforms import make_transform
 
@@ -170,6 +171,29 @@ def stairs(rng: np.random.Generator) -> SceneMesh:
     return _join(parts)
 
 
+#: The chessboard of the ``boards`` preset: 7 × 5 inner corners, 10 cm squares, 5 cm margin.
+CALIBRATION_BOARD = BoardSpec(cols=7, rows=5, square_m=0.10, margin_m=0.05)
+#: Where the ``boards`` preset's boards stand: centre (m), facing and lean-back (degrees).
+#: Each faces the robot near the end of one leg of its loop, turned and tilted differently, so
+#: that the board normals spread in every direction of the rig.
+BOARD_POSES = (
+    ((6.3, 2.1, 0.72), 170.0, 30.0),
+    ((4.9, 5.3, 0.72), -55.0, 0.0),
+    ((0.7, 3.9, 0.72), -30.0, -12.0),
+    ((2.1, 0.7, 0.72), 115.0, 20.0),
+)
+
+
+def boards(rng: np.random.Generator) -> SceneMesh:
+    """A 7 × 6 × 2.6 m room with four free-standing chessboards (:data:`CALIBRATION_BOARD` at
+    :data:`BOARD_POSES`) round a loop, and two boxes."""
+    parts = [shell((7.0, 6.0, 2.6), "plaster")]
+    parts += [SceneMesh(*board_mesh(CALIBRATION_BOARD, *pose)) for pose in BOARD_POSES]
+    for size, centre in (((0.6, 0.6, 0.6), (6.2, 5.2)), ((0.5, 0.8, 0.5), (0.7, 0.8))):
+        parts.append(box(size, (*centre, size[2] / 2), "cardboard", rng.uniform(-0.2, 0.2)))
+    return _join(parts)
+
+
 @dataclass(frozen=True)
 class Preset:
     """A procedural scene with the path the robot drives through it and the rig's extrinsic.
@@ -215,6 +239,13 @@ PRESETS: dict[str, Preset] = {
         ((1.0, 1.0), (3.0, 0.9), (4.8, 1.4), (5.2, 2.4), (4.0, 2.7), (2.5, 2.6), (1.2, 2.0)),
         True,
         _extrinsic((0.5, 1.5, -1.0), (-0.03, -0.07, -0.05)),
+    ),
+    "boards": Preset(
+        "boards",
+        boards,
+        ((2.0, 2.0), (5.0, 2.0), (5.0, 4.0), (2.0, 4.0)),
+        True,
+        _extrinsic((0.8, -1.2, 0.6), (0.03, -0.08, -0.02)),
     ),
 }
 

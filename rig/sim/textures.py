@@ -49,6 +49,9 @@ MATERIALS: tuple[Material, ...] = (
     Material("metal", (0.45, 0.46, 0.50), "noise", 0.5, 0.20, 0.90),
     Material("bricks", (0.62, 0.30, 0.22), "bricks", 2.0, 0.30, 0.40),
     Material("concrete", (0.58, 0.58, 0.56), "noise", 2.0, 0.55, 0.55),
+    # Matte print of a calibration board (appended: earlier materials keep their textures).
+    Material("board_black", (0.06, 0.06, 0.06), "noise", 1.0, 0.0, 0.10),
+    Material("board_white", (0.90, 0.90, 0.88), "noise", 1.0, 0.0, 0.85),
 )
 MATERIAL_IDS = {m.name: i for i, m in enumerate(MATERIALS)}
 

@@ -126,3 +126,26 @@ def test_cli_board_mode(tmp_path) -> None:
     assert summary["method"] == "target-based (board planes)"
     rot, trans = pose_difference(load_calibration(out).T_cam_lidar, T_CAM_LIDAR)
     assert rot < 0.15 and trans < 0.01, (rot, trans)
+
+
+def test_outline_places_the_board_along_its_planes() -> None:
+    """Boards turned only about the camera's y axis: their planes say nothing about the LiDAR's
+    height (camera y), which the boards' top and bottom edges then fix."""
+    rng = np.random.default_rng(5)
+    observations = []
+    for i, yaw in enumerate((-35.0, -10.0, 15.0, 40.0)):
+        R = Rotation.from_euler("y", yaw, degrees=True).as_matrix()
+        T_cam_board = make_transform(R, [0.3 * np.sin(np.radians(yaw)), 0.1 * (i - 1.5), 2.5])  # centre at 0
+        outline = (-HALF[0], HALF[0], -HALF[1], HALF[1])
+        points = board_scan(invert(T_CAM_LIDAR) @ T_cam_board, outline, rng, n_board=2000, noise_m=0.01)
+        observations.append(
+            BoardObservation(T_cam_board, PointCloud(points, np.zeros(len(points), np.float32)))
+        )
+    guess = T_CAM_LIDAR.copy()
+    guess[1, 3] += 0.05
+    result = calibrate_with_board(observations, HALF, guess)
+    assert result.verdict == "poorly constrained"  # the normals span a plane only
+    assert abs(result.T_cam_lidar[1, 3] - T_CAM_LIDAR[1, 3]) < 0.005, (
+        result.T_cam_lidar[1, 3] - T_CAM_LIDAR[1, 3]
+    )
+    assert result.n_edge_points > 0
