@@ -7,24 +7,30 @@ builder turns a session + SLAM folder into the keyframe scene folder (:mod:`slam
 
 from slam_bridge.depth_image import lidar_depth_image, remove_occluded, zbuffer_depth
 from slam_bridge.fallback_mapper import MapperConfig, MapperResult, run_mapper
-from slam_bridge.fast_lio import import_fast_lio, mesh_from_points
+from slam_bridge.fast_lio import import_fast_lio
 from slam_bridge.generic import import_generic
-from slam_bridge.immesh import T_LC, import_immesh, read_immesh_log
+from slam_bridge.immesh import T_LC, ImmeshReport, import_immesh, read_immesh_log
 from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
 from slam_bridge.pin_slam import import_pin_slam
+from slam_bridge.point_map import mesh_from_points
+from slam_bridge.pose_refinement import RefineConfig, RefinementReport, refine_keyframe_poses
 from slam_bridge.scene import Keyframe, Scene, load_scene
-from slam_bridge.scene_builder import PrepareConfig, build_scene
+from slam_bridge.scene_builder import PrepareConfig, SceneBuild, build_scene
 from slam_bridge.slam_dir import load_slam_dir, write_slam_dir
 from slam_bridge.sparse_points import SparseResult, triangulate_keyframes
 
 __all__ = [
     "T_LC",
     "CleanupReport",
+    "ImmeshReport",
     "Keyframe",
     "MapperConfig",
     "MapperResult",
     "PrepareConfig",
+    "RefineConfig",
+    "RefinementReport",
     "Scene",
+    "SceneBuild",
     "SparseResult",
     "build_scene",
     "clean_mesh",
@@ -37,6 +43,7 @@ __all__ = [
     "load_slam_dir",
     "mesh_from_points",
     "read_immesh_log",
+    "refine_keyframe_poses",
     "remove_occluded",
     "run_mapper",
     "triangulate_keyframes",

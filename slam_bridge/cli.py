@@ -19,12 +19,18 @@ IMPORT_FORMATS = ("immesh", "pin-slam", "fast-lio", "generic")
 
 
 def detect_import_format(source: Path, explicit_files: bool = False) -> str:
-    """The import format of a mapper's output folder, when its files make it unambiguous."""
+    """The import format of a mapper's output folder, when its files make it unambiguous (a bare
+    bag is ImMesh's: no other format imports one alone)."""
+    from slam_bridge.immesh import LOG_NAME, MESH_NAME
+    from slam_bridge.mapper_bag import is_bag
+
+    if not explicit_files and is_bag(source):
+        return "immesh"
     if explicit_files or source.is_file():
         return "generic"
     if not source.is_dir():
         raise InputError("no such folder or file", path=source)
-    if (source / "rec_mesh.ply").is_file():
+    if (source / MESH_NAME).is_file() or (source / "Log" / LOG_NAME).is_file():
         return "immesh"
     if (source / "mesh").is_dir() and any(source.glob("*_poses_tum.txt")):
         return "pin-slam"
@@ -45,10 +51,13 @@ def import_command(
     fmt: str | None = typer.Option(
         None,
         "--format",
-        help="immesh: SOURCE holds rec_mesh.ply and Log/kitti_log_voxelmap.txt (or the log at its root). "
+        help="immesh: SOURCE holds rec_mesh.ply and Log/kitti_log_voxelmap.txt (or the log at its root), "
+        "and/or a bag recorded with ImMesh (odometry /aft_mapped_to_init, registered clouds "
+        "/cloud_registered); SOURCE may also be the bag itself. The bag's odometry wins over the log; "
+        "without rec_mesh.ply the mesh is made from the registered clouds. "
         "pin-slam: SOURCE holds mesh/*.ply and *_poses_tum.txt. "
         "fast-lio: SOURCE holds scans.pcd (or PCD/scans.pcd) and one bag with the odometry topic, or give "
-        "--trajectory; the mesh is made from the map by Poisson reconstruction. "
+        "--bag or --trajectory; the mesh is made from the map by Poisson reconstruction. "
         "generic: one mesh and one trajectory file (TUM/KITTI/EuRoC/4x4) in SOURCE, or --mesh/--trajectory "
         "(e.g. SLAMesh's PLY + KITTI poses with --rate). Detected from SOURCE's files when omitted.",
     ),
@@ -56,8 +65,22 @@ def import_command(
     trajectory: Path | None = typer.Option(
         None, "--trajectory", help="generic / fast-lio: the trajectory file (TUM/KITTI/EuRoC/4x4)."
     ),
-    odometry_topic: str = typer.Option(
-        "/Odometry", "--odometry-topic", help="fast-lio: odometry topic in the bag."
+    bag: Path | None = typer.Option(
+        None,
+        "--bag",
+        help="immesh / fast-lio: the bag (ROS 1 .bag, rosbag2 folder or .mcap) to read; default: the one "
+        "bag at SOURCE's root.",
+    ),
+    odometry_topic: str | None = typer.Option(
+        None,
+        "--odometry-topic",
+        help="immesh / fast-lio: odometry topic in the bag (default /aft_mapped_to_init for immesh, "
+        "/Odometry for fast-lio).",
+    ),
+    cloud_topic: str = typer.Option(
+        "/cloud_registered",
+        "--cloud-topic",
+        help="immesh: registered point clouds in the bag, meshed when there is no rec_mesh.ply.",
     ),
     times: Path | None = typer.Option(None, "--times", help="generic KITTI/4x4 trajectory: times file."),
     rate: float | None = typer.Option(None, "--rate", help="generic KITTI/4x4 trajectory without times: Hz."),
@@ -66,17 +89,19 @@ def import_command(
     """Import a mapper's mesh and trajectory: clean the mesh and write the SLAM folder."""
     fmt = fmt or detect_import_format(source, explicit_files=mesh is not None)
     if fmt == "immesh":
-        from slam_bridge.immesh import import_immesh
+        from slam_bridge.immesh import ODOMETRY_TOPIC, import_immesh
 
-        report = import_immesh(source, out)
+        report = import_immesh(
+            source, out, bag=bag, odometry_topic=odometry_topic or ODOMETRY_TOPIC, cloud_topic=cloud_topic
+        )
     elif fmt == "pin-slam":
         from slam_bridge.pin_slam import import_pin_slam
 
         report = import_pin_slam(source, out)
     elif fmt == "fast-lio":
-        from slam_bridge.fast_lio import import_fast_lio
+        from slam_bridge.fast_lio import ODOMETRY_TOPIC, import_fast_lio
 
-        report = import_fast_lio(source, out, trajectory, odometry_topic)
+        report = import_fast_lio(source, out, trajectory, odometry_topic or ODOMETRY_TOPIC, bag)
     elif fmt == "generic":
         from slam_bridge.generic import MESH_SUFFIXES, TRAJECTORY_SUFFIXES, find_single, import_generic
 
@@ -96,6 +121,12 @@ def import_command(
         f"{report.degenerate_faces} degenerate and {report.duplicate_faces} duplicate faces; "
         f"re-oriented {report.flipped_faces} faces)"
     )
+    if "trajectory_from" in summary:
+        checked = summary.get("log_vs_bag_m")
+        console.print(
+            f"mesh from {summary['mesh_from']}; trajectory from {summary['trajectory_from']}"
+            + ("" if checked is None else f" (the log agrees to {checked * 1000:.2f} mm)")
+        )
 
 
 @app.command("run")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -19,7 +19,10 @@ from rig.messages import Frame, Scan
 from rig.session import SessionReader
 from rig.trajectory import Trajectory
 from rig.transforms import invert
+from slam_bridge.colmap_matches import match_keyframes, read_correspondences
 from slam_bridge.depth_image import remove_occluded, zbuffer_depth
+from slam_bridge.mesh_rays import cast_camera_rays, mesh_raycaster
+from slam_bridge.pose_refinement import RefinementReport, refine_keyframe_poses
 from slam_bridge.scene import SPARSE_POINTS_FILE, Keyframe, write_scene_index
 from slam_bridge.session_streams import find_topics
 from slam_bridge.slam_dir import MESH_FILE, load_slam_dir
@@ -39,8 +42,9 @@ class PrepareConfig:
         normals_dir: a folder of precomputed normal maps (e.g. from a monocular normal network) to
             use instead of the SLAM mesh's normals: see :func:`read_normal_map`.
         sparse_points: triangulate COLMAP sparse points from the keyframes (for the TS+ baseline).
-        refine_poses: bundle-adjust the keyframe poses with COLMAP (intrinsics fixed); implies
-            ``sparse_points``.
+        refine_poses: refine the keyframe poses against the SLAM mesh, guarded by held-out
+            matches (:mod:`slam_bridge.pose_refinement`); depth, normals and sparse points then
+            use the refined poses.
     """
 
     keyframe_interval_s: float = 0.5
@@ -110,15 +114,9 @@ def normal_prior(
     raycaster, T_world_cam: np.ndarray, rays_cam: np.ndarray, shape: tuple[int, int]
 ) -> np.ndarray:
     """Camera-frame normals ``(H, W, 3)`` of the mesh seen through each pixel ray (facing the camera)."""
-    import open3d as o3d
-
-    origins = np.broadcast_to(T_world_cam[:3, 3], rays_cam.shape)
-    dirs = rays_cam @ T_world_cam[:3, :3].T
-    rays = o3d.core.Tensor(np.concatenate([origins, dirs], axis=1).astype(np.float32))
-    hits = raycaster.cast_rays(rays)
-    normals_world = hits["primitive_normals"].numpy().astype(np.float64)
-    hit = np.isfinite(hits["t_hit"].numpy())
-    normals = normals_world @ T_world_cam[:3, :3]  # to the camera frame
+    hits = cast_camera_rays(raycaster, T_world_cam, rays_cam)
+    hit = np.isfinite(hits["t_hit"])
+    normals = hits["primitive_normals"] @ T_world_cam[:3, :3]  # to the camera frame
     facing = np.einsum("ij,ij->i", normals, rays_cam) > 0
     normals[facing] *= -1
     normals[~hit] = 0
@@ -163,6 +161,14 @@ def undistort_normals(normals: np.ndarray, camera: CameraModel, target: CameraMo
     return np.divide(resampled, norms, out=np.zeros_like(resampled), where=norms > 1e-6).astype(np.float32)
 
 
+@dataclass(frozen=True)
+class SceneBuild:
+    """What :func:`build_scene` wrote: the keyframes and, with ``refine_poses``, the refinement's report."""
+
+    keyframes: list[Keyframe]
+    refinement: RefinementReport | None
+
+
 def build_scene(
     session: str | Path,
     calibration: Calibration,
@@ -170,10 +176,9 @@ def build_scene(
     out_dir: str | Path,
     config: PrepareConfig = PrepareConfig(),
     progress: Callable[[int, int], None] | None = None,
-) -> list[Keyframe]:
-    """Write the scene folder (see :mod:`slam_bridge.scene`) and return its keyframes."""
-    import open3d as o3d
-
+) -> SceneBuild:
+    """Write the scene folder (see :mod:`slam_bridge.scene`); ``progress(done, total)`` is called
+    after each image and each depth image."""
     reader = SessionReader(session)
     topics = find_topics(reader, config.image_topic, config.points_topic)
     mesh, trajectory = load_slam_dir(slam_dir)
@@ -198,15 +203,31 @@ def build_scene(
         frame_t, trajectory, calibration, config.keyframe_interval_s, config.keyframe_min_motion
     )
     poses = camera_poses(trajectory, calibration, frame_t[chosen])
+    total = 2 * len(chosen)
+    keyframes = []
+    for n, (index, T_world_cam) in enumerate(zip(chosen, poses, strict=True)):
+        name = f"kf_{n:04d}"
+        cv2.imwrite(str(out / "images" / f"{name}.png"), camera.undistort_image(frames[index].image, target))
+        split = "test" if config.test_every and n % config.test_every == config.test_every - 1 else "train"
+        keyframes.append(Keyframe(name, int(frame_t[index]), T_world_cam, split))
+        if progress is not None:
+            progress(n + 1, total)
+
+    raycaster = mesh_raycaster(mesh)
+    image_names = [f"{k.name}.png" for k in keyframes]
+    needs_matches = config.sparse_points or config.refine_poses
+    database = match_keyframes(out / "images", out / "colmap", target, image_names) if needs_matches else None
+    refinement = None
+    if database is not None and config.refine_poses:
+        correspondences = read_correspondences(database, image_names)
+        refined, refinement = refine_keyframe_poses(
+            [k.name for k in keyframes], frame_t[chosen], poses, target, correspondences, raycaster
+        )
+        keyframes = [replace(k, T_world_cam=T) for k, T in zip(keyframes, refined, strict=True)]
+
     scans = list(reader.scans(topics.points))
     offset_ns = round(calibration.time_offset_s * 1e9)
     scan_t = np.array([s.t_host for s in scans], dtype=np.int64) + offset_ns  # on the camera clock
-
-    raycaster = o3d.t.geometry.RaycastingScene()
-    raycaster.add_triangles(
-        o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
-        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
-    )
     u, v = np.meshgrid(np.arange(target.width), np.arange(target.height))
     rays_cam = target.unproject(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
     rays_cam /= np.linalg.norm(rays_cam, axis=1, keepdims=True)
@@ -215,11 +236,7 @@ def build_scene(
     def world_points(scan_index: int) -> np.ndarray:  # neighbouring keyframes share most scans
         return deskewed_world_points(scans[scan_index], trajectory)
 
-    keyframes = []
-    for n, (index, T_world_cam) in enumerate(zip(chosen, poses, strict=True)):
-        name = f"kf_{n:04d}"
-        image = camera.undistort_image(frames[index].image, target)
-        cv2.imwrite(str(out / "images" / f"{name}.png"), image)
+    for n, (index, keyframe) in enumerate(zip(chosen, keyframes, strict=True)):
         # LiDAR returns between the previous and the next keyframe, deskewed by the trajectory.
         lo = frame_t[chosen[n - 1]] if n > 0 else frame_t[index] - int(config.keyframe_interval_s * 1e9)
         hi = (
@@ -230,36 +247,32 @@ def build_scene(
         near = [i for i, t in enumerate(scan_t) if lo <= t <= hi]
         if near:
             world = np.concatenate([world_points(i) for i in near])
-            T_cam_world = invert(T_world_cam)
+            T_cam_world = invert(keyframe.T_world_cam)
             depth = zbuffer_depth(world @ T_cam_world[:3, :3].T + T_cam_world[:3, 3], target)
             if config.occlusion_window_px:
                 depth = remove_occluded(depth, config.occlusion_window_px)
         else:
             depth = np.zeros((target.height, target.width), dtype=np.float32)
-        np.save(out / "depth" / f"{name}.npy", depth)
+        np.save(out / "depth" / f"{keyframe.name}.npy", depth)
         if config.normals_dir is not None:
             given = read_normal_map(Path(config.normals_dir), int(index), int(frame_t[index]), camera)
             normals = undistort_normals(given, camera, target)
         else:
-            normals = normal_prior(raycaster, T_world_cam, rays_cam, (target.height, target.width))
-        np.save(out / "normals" / f"{name}.npy", normals)
-        split = "test" if config.test_every and n % config.test_every == config.test_every - 1 else "train"
-        keyframes.append(Keyframe(name, int(frame_t[index]), T_world_cam, split))
+            normals = normal_prior(raycaster, keyframe.T_world_cam, rays_cam, (target.height, target.width))
+        np.save(out / "normals" / f"{keyframe.name}.npy", normals)
         if progress is not None:
-            progress(n + 1, len(chosen))
+            progress(len(chosen) + n + 1, total)
     shutil.copyfile(Path(slam_dir) / MESH_FILE, out / "mesh.ply")
     sparse_file = None
-    if config.sparse_points or config.refine_poses:
-        sparse = triangulate_keyframes(out / "images", out / "colmap", target, keyframes, config.refine_poses)
+    if database is not None and config.sparse_points:
+        sparse = triangulate_keyframes(database, out / "images", out / "colmap", keyframes)
         trimesh.PointCloud(sparse.points, colors=sparse.colors).export(out / SPARSE_POINTS_FILE)
         sparse_file = SPARSE_POINTS_FILE
-        if config.refine_poses:
-            keyframes = [replace(k, T_world_cam=sparse.poses[k.name]) for k in keyframes]
     source = {
         "session": str(session),
         "slam_dir": str(slam_dir),
         "keyframe_interval_s": config.keyframe_interval_s,
-        "refined_poses": config.refine_poses,
+        "pose_refinement": None if refinement is None else asdict(refinement),
     }
     write_scene_index(out, target, keyframes, source, sparse_points=sparse_file)
-    return keyframes
+    return SceneBuild(keyframes, refinement)

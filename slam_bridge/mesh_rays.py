@@ -1,0 +1,37 @@
+"""Camera rays cast at the SLAM mesh (open3d ``RaycastingScene``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import trimesh
+
+
+def mesh_raycaster(mesh: trimesh.Trimesh) -> Any:
+    """An open3d ``RaycastingScene`` holding ``mesh``'s triangles."""
+    import open3d as o3d
+
+    raycaster = o3d.t.geometry.RaycastingScene()
+    raycaster.add_triangles(
+        o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
+        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
+    )
+    return raycaster
+
+
+def cast_camera_rays(raycaster: Any, T_world_cam: np.ndarray, rays_cam: np.ndarray) -> dict[str, np.ndarray]:
+    """Cast unit rays ``(N, 3)`` given in the camera frame from a camera at ``T_world_cam``.
+
+    Returns open3d's hit arrays as numpy: ``t_hit`` ``(N,)`` (distance along the ray, inf on a
+    miss) and ``primitive_normals`` ``(N, 3)`` (world frame).
+    """
+    import open3d as o3d
+
+    origins = np.broadcast_to(T_world_cam[:3, 3], rays_cam.shape)
+    dirs = rays_cam @ T_world_cam[:3, :3].T
+    hits = raycaster.cast_rays(o3d.core.Tensor(np.concatenate([origins, dirs], axis=1).astype(np.float32)))
+    return {
+        "t_hit": hits["t_hit"].numpy().astype(np.float64),
+        "primitive_normals": hits["primitive_normals"].numpy().astype(np.float64),
+    }
