@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, settings
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 REAL_DATA = PROJECT_ROOT.parent / "shared" / "data" / "real"
 # Shared test helpers (console_script.py) import by name: the suite runs with --import-mode=importlib.
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path.append(str(Path(__file__).parent))
 
 # "ci" keeps property tests short enough for the suite's time budget; "long" is for bug hunts:
 #   HYPOTHESIS_PROFILE=long .venv/bin/pytest
