@@ -93,7 +93,8 @@ def calibrate_session(
 ) -> tuple[Calibration, dict[str, Any]]:
     """Everything a session supports: camera model, time offset and, with ``init``'s rough
     ``T_cam_lidar``, the extrinsic — from the chessboard ``board`` when given, else targetless.
-    Returns the calibration and a report."""
+    A time offset or extrinsic whose verdict is not ``ok`` is reported but not applied (the
+    calibration keeps ``init``'s). Returns the calibration and a report."""
     data = load_session(path, topics)
     camera = data.camera or (init.camera if init is not None else None)
     if camera is None:
@@ -130,6 +131,10 @@ def calibrate_session(
             pairs = extrinsic_pairs(data, calibration.time_offset_s, motion)
             result = refine_extrinsic(pairs, camera, init.T_cam_lidar)
         report["extrinsic"] = result.to_json()
-        calibration.T_cam_lidar = result.T_cam_lidar
+        # As with the time offset: a result that cannot vouch for itself does not replace the
+        # guess (a refinement drifting away from a good start is what users of other tools meet).
+        report["extrinsic"]["applied"] = result.verdict == "ok"
+        if result.verdict == "ok":
+            calibration.T_cam_lidar = result.T_cam_lidar
     calibration.quality = {"time": report["time"], "extrinsic": report["extrinsic"]}
     return calibration, report
