@@ -259,5 +259,6 @@ def session_command(
         console.print(
             f"{step}: {block['verdict']}"
             + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
+            + (" — not applied, the --init value is kept" if block.get("applied") is False else "")
         )
     console.print(f"wrote {out}")

@@ -116,6 +116,7 @@ def calibrate_session(
 
     time_result, motion = calibrate_time(data, camera, lidar_motion)
     report["time"] = time_result.to_json()
+    report["time"]["applied"] = time_result.verdict == "ok"
     if time_result.verdict == "ok":
         calibration.time_offset_s = time_result.time_offset_s
 
