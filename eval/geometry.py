@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.mesh_rays import mesh_raycaster
 from rig.transforms import invert
 
 DEFAULT_SAMPLES = 200_000
@@ -103,11 +104,7 @@ def visible_mask(
     reaches within ``tolerance_m`` of the point)."""
     import open3d as o3d
 
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(
-        o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
-        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
-    )
+    scene = mesh_raycaster(mesh)
     points = np.asarray(points, dtype=np.float64)
     seen = np.zeros(len(points), dtype=bool)
     for pose in np.asarray(poses_world_cam):

@@ -14,6 +14,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from rig.camera import CameraModel
+from rig.mesh_rays import cast_camera_rays, mesh_raycaster
 from rig.transforms import make_transform
 
 
@@ -26,29 +27,13 @@ def leaned_poses(poses_world_cam: np.ndarray, yaw_deg: float = 10.0, shift_m: fl
     return np.stack([pose @ offset for pose in np.asarray(poses_world_cam) for offset in offsets])
 
 
-def raycaster(mesh: trimesh.Trimesh):
-    """An open3d ``RaycastingScene`` holding ``mesh`` (for :func:`hit_mask`)."""
-    import open3d as o3d
-
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(
-        o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
-        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
-    )
-    return scene
-
-
 def hit_mask(scene, camera: CameraModel, T_world_cam: np.ndarray, max_range_m: float = 20.0) -> np.ndarray:
     """``(H, W)`` bool: which pixels of a camera at ``T_world_cam`` see a surface of ``scene`` (a
-    :func:`raycaster`) within ``max_range_m`` along the ray."""
-    import open3d as o3d
-
+    :func:`rig.mesh_rays.mesh_raycaster`) within ``max_range_m`` along the ray."""
     u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
     rays = camera.unproject(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
-    dirs = rays @ T_world_cam[:3, :3].T
-    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    origins = np.broadcast_to(T_world_cam[:3, 3], dirs.shape)
-    t_hit = scene.cast_rays(o3d.core.Tensor(np.c_[origins, dirs].astype(np.float32)))["t_hit"].numpy()
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    t_hit = cast_camera_rays(scene, T_world_cam, rays)["t_hit"]
     return (t_hit <= max_range_m).reshape(camera.height, camera.width)
 
 
@@ -69,7 +54,7 @@ def mesh_hole_fraction(
     max_range_m: float = 20.0,
 ) -> HoleResult:
     """Holes of a reconstructed mesh seen from ``poses_world_cam`` ``(V, 4, 4)`` (e.g. leaned ones)."""
-    rec, gt = raycaster(reconstruction), raycaster(ground_truth)
+    rec, gt = mesh_raycaster(reconstruction), mesh_raycaster(ground_truth)
     holes, surface = [], 0
     for pose in np.asarray(poses_world_cam):
         gt_hit = hit_mask(gt, camera, pose, max_range_m)

@@ -33,10 +33,11 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from eval.geometry import DEFAULT_SAMPLES
-from eval.leaned_views import hit_mask, leaned_poses, raycaster
+from eval.leaned_views import hit_mask, leaned_poses
 from eval.photometric import lpips, psnr, ssim
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
+from rig.mesh_rays import mesh_raycaster
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.model import TriangleModel, load_model
@@ -221,7 +222,7 @@ def _holes(
     metrics: dict,
 ) -> list[LeanedImages]:
     """Hole fractions of the unleaned test views and of their leaned variants."""
-    caster = raycaster(reference)
+    caster = mesh_raycaster(reference)
     camera = scene.camera
     surface_total = holes_total = 0
     for keyframe, view in zip(tests, views, strict=True):

@@ -32,9 +32,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from rig.camera import CameraModel
+from rig.mesh_rays import cast_camera_rays
 from rig.transforms import invert, make_transform
 from slam_bridge.colmap_matches import COLMAP_PIXEL_OFFSET, Correspondences, colmap_camera_params
-from slam_bridge.mesh_rays import cast_camera_rays
 
 #: A keyframe is resected only with at least this many anchored correspondences.
 MIN_CORRESPONDENCES = 12

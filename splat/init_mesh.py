@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from rig.camera import CameraModel
+from rig.mesh_rays import cast_camera_rays, mesh_raycaster
 from rig.plane_fit import ransac_plane
 from splat.floor_cells import PlaneGrid, enclosed_hidden_cells
 
@@ -147,17 +148,11 @@ def ground_fill(
     ``complete_hidden``, the floor no camera sees is completed where the room encloses it (gaps
     up to ``2 * closing_m`` bridged).
     """
-    import open3d as o3d
-
     empty = np.zeros((0, 3, 3))
     plane = fit_floor_plane(mesh, poses_world_cam, lidar)
     if plane is None:
         return GroundFill(empty, empty, None, "no floor plane in the warm-start mesh; ground fill skipped")
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(
-        o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
-        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
-    )
+    scene = mesh_raycaster(mesh)
     ys, xs = np.mgrid[0 : camera.height : pixel_stride, 0 : camera.width : pixel_stride]
     pixels = np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)
     rays_cam = camera.unproject(pixels, 1.0)
@@ -167,8 +162,7 @@ def ground_fill(
     for pose in poses_world_cam:
         origin = pose[:3, 3]
         dirs = rays_cam @ pose[:3, :3].T
-        rays = np.hstack([np.broadcast_to(origin, dirs.shape), dirs]).astype(np.float32)
-        t_mesh = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+        t_mesh = cast_camera_rays(scene, pose, rays_cam)["t_hit"]
         denom = dirs @ n
         with np.errstate(divide="ignore", invalid="ignore"):
             t_floor = -(origin @ n + d) / denom

@@ -8,6 +8,8 @@ import numpy as np
 import open3d as o3d
 import trimesh
 
+from rig.mesh_rays import mesh_raycaster
+
 
 @dataclass
 class Hits:
@@ -47,11 +49,7 @@ class Raycaster:
     """
 
     def __init__(self, mesh: trimesh.Trimesh) -> None:
-        self._scene = o3d.t.geometry.RaycastingScene()
-        self._scene.add_triangles(
-            o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
-            o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
-        )
+        self._scene = mesh_raycaster(mesh)
 
     def cast(self, origins: np.ndarray, directions: np.ndarray) -> Hits:
         """Cast rays from ``origins`` ``(N, 3)`` (or one ``(3,)``) along unit ``directions`` ``(N, 3)``."""

@@ -8,8 +8,8 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from rig import CameraModel, make_transform
+from rig.mesh_rays import mesh_raycaster
 from slam_bridge.colmap_matches import Correspondences
-from slam_bridge.mesh_rays import mesh_raycaster
 from slam_bridge.pose_refinement import cast_anchors, refine_keyframe_poses, restore_slow_errors
 
 CAMERA = CameraModel("pinhole", 320, 240, [[250.0, 0, 159.5], [0, 250.0, 119.5], [0, 0, 1]], [])

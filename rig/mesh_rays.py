@@ -1,4 +1,5 @@
-"""Camera rays cast at the SLAM mesh (open3d ``RaycastingScene``)."""
+"""Rays cast at a triangle mesh (open3d ``RaycastingScene``): one way to build the scene, and
+camera rays cast from a pose. open3d is imported on first use."""
 
 from __future__ import annotations
 
