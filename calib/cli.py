@@ -117,10 +117,17 @@ def extrinsic(
     outline: str | None = typer.Option(
         None, "--outline", help="Target-based: board size WxH in mm (default: one square beyond the corners)."
     ),
+    force: bool = typer.Option(
+        False, "--force", help="Write the estimate into --out even when its verdict is not ok."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """LiDAR-camera extrinsic from image + point-cloud pairs and a rough guess: targetless
-    (edges + mutual information), or from a chessboard in several poses with --board."""
+    (edges + mutual information), or from a chessboard in several poses with --board.
+
+    Only an estimate with verdict ok replaces the guess in --out (as `lts calibrate SESSION`
+    does); otherwise --out keeps the --init extrinsic and its quality block says why, unless
+    --force. The JSON's T_cam_lidar is always the estimate."""
     import cv2
 
     from calib.board_session import board_geometry
@@ -148,11 +155,13 @@ def extrinsic(
         geometry = board_geometry(board, square, outline)
         observations = board_observations(pairs, start.camera, geometry.target)
         result = calibrate_with_board(observations, geometry.half_size, start.T_cam_lidar)
+    applied = force or result.verdict == "ok"
+    report = {**result.to_json(), "applied": applied}
     calibration = _merge_into(
         out if out.exists() else init,
         camera=start.camera,
-        T_cam_lidar=result.T_cam_lidar,
-        quality={"extrinsic": result.to_json()},
+        T_cam_lidar=result.T_cam_lidar if applied else start.T_cam_lidar,
+        quality={"extrinsic": report},
     )
     save_calibration(calibration, out)
     if overlay is not None:
@@ -165,7 +174,7 @@ def extrinsic(
             result.T_cam_lidar,
         )
     if json_out:
-        emit_json({**result.to_json(), "out": str(out)})
+        emit_json({**report, "out": str(out)})
         return
     rot, trans = result.change_from_init()
     console.print(
@@ -174,6 +183,8 @@ def extrinsic(
         f"±{result.translation_std_m * 100:.1f} cm: {result.verdict}"
         + ("" if not result.reasons else " (" + "; ".join(result.reasons) + ")")
     )
+    if not applied:
+        console.print("not applied: --out keeps the --init extrinsic (--force writes the estimate)")
     console.print(f"wrote {out}")
 
 
