@@ -3,28 +3,10 @@
 
 from __future__ import annotations
 
-import os
-import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 from rig.cli_support import console, emit_json
-
-
-@contextmanager
-def _stdout_to_stderr() -> Iterator[None]:
-    """Native libraries (pybullet's banner, open3d) print on file descriptor 1; keep stdout for
-    the one JSON object."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        os.dup2(2, 1)
-        yield
-    finally:
-        sys.stdout.flush()
-        os.dup2(saved, 1)
-        os.close(saved)
+from rig.native_output import native_output_to_stderr
 
 
 def _text(value, unit: str = "", scale: float = 1.0, digits: int = 3) -> str:
@@ -46,7 +28,7 @@ def evaluate_run_command(
     def log(message: str) -> None:
         console.print(f"[dim]{message}[/]", highlight=False)
 
-    with _stdout_to_stderr():
+    with native_output_to_stderr():
         evaluation = evaluate_run(run_dir, gt, threshold, samples, device, physics, log)
         eval_path = write_eval_json(evaluation)
         report_path = None

@@ -9,13 +9,14 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TextIO
 
 import click
 import typer
 from rich.console import Console
 
 from rig.errors import InputError, OutOfRangeError
+from rig.native_output import native_output_to_stderr
 from rig.plain import plain_data
 from rig.version import package_version
 
@@ -24,11 +25,29 @@ console = Console(stderr=True, soft_wrap=True)
 
 EXIT_BAD_INPUT = 2
 
+#: The real stdout while a ``--json`` command runs with file descriptor 1 pointed at stderr.
+_json_stream: TextIO | None = None
+
 
 def emit_json(obj: dict[str, Any]) -> None:
     """Print ``obj`` as one JSON object on stdout (numpy values converted, NaN/Inf as null)."""
-    sys.stdout.write(json.dumps(plain_data(obj, nonfinite_as_none=True)) + "\n")
-    sys.stdout.flush()
+    stream = _json_stream or sys.stdout
+    stream.write(json.dumps(plain_data(obj, nonfinite_as_none=True)) + "\n")
+    stream.flush()
+
+
+def _run_with_json_stdout(app: typer.Typer, prog_name: str) -> Any:
+    """Run ``app``; with ``--json`` on the command line everything but :func:`emit_json`'s object
+    goes to stderr, native libraries' output included."""
+    global _json_stream
+    if "--json" not in sys.argv[1:]:
+        return app(prog_name=prog_name, standalone_mode=False)
+    with native_output_to_stderr() as real_stdout:
+        _json_stream = real_stdout
+        try:
+            return app(prog_name=prog_name, standalone_mode=False)
+        finally:
+            _json_stream = None
 
 
 def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
@@ -37,7 +56,7 @@ def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
     def main() -> None:
         try:
             # Outside standalone mode Click returns the code of a typer.Exit instead of raising it.
-            code = app(prog_name=prog_name, standalone_mode=False)
+            code = _run_with_json_stdout(app, prog_name)
             if isinstance(code, int) and code != 0:
                 sys.exit(code)
         except (InputError, OutOfRangeError) as exc:

@@ -10,11 +10,7 @@ arrival times so the session records how the device clock behaved.
 
 from __future__ import annotations
 
-import os
-import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import timedelta
 from typing import Any, Protocol
@@ -24,6 +20,7 @@ import numpy as np
 from rig.clock import ClockEstimator, HostStamper
 from rig.drivers.base import DeviceError, Driver, Message, now_ns
 from rig.messages import Frame, ImuSample
+from rig.native_output import native_output_to_stderr
 
 OAK_VENDOR_ID = 0x03E7
 
@@ -54,22 +51,9 @@ def _ns(delta: timedelta) -> int:
     return (delta.days * 86400 + delta.seconds) * 1_000_000_000 + delta.microseconds * 1000
 
 
-@contextmanager
-def _stdout_to_stderr() -> Iterator[None]:
-    """depthai logs warnings on file descriptor 1; keep stdout for ``--json``."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        os.dup2(2, 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-
-
 def list_oak_devices() -> list[dict[str, str]]:
     """OAK devices depthai can see: ``[{"id", "name", "state", "protocol"}]`` (empty without depthai)."""
-    with _stdout_to_stderr():
+    with native_output_to_stderr():
         try:
             import depthai as dai
         except ImportError:
@@ -89,7 +73,7 @@ class DepthaiSource:
         self._queues: dict[str, Any] = {}
 
     def open(self) -> str:
-        with _stdout_to_stderr():
+        with native_output_to_stderr():
             return self._open()
 
     def _open(self) -> str:
