@@ -16,9 +16,10 @@ evaluate   ``lts eval train/ [--gt]`` + report         ``train/eval.json``, ``re
 =========  =========================================  ==============================
 
 A stage is skipped when ``stages.json`` records it as finished with the same *fingerprint*: its
-command line and the size and modification time of every input file. Changing a training option
-therefore retrains without redoing calibration, mapping or keyframes; a changed session redoes
-everything. A training folder made with other options is kept, renamed ``train.previous-N``.
+command line, the toolkit's version and the size and modification time of every input file.
+Changing a training option therefore retrains without redoing calibration, mapping or keyframes;
+a changed session or an upgraded toolkit redoes everything. A training folder made with other
+options is kept, renamed ``train.previous-N``.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from pathlib import Path
 
 from rig.atomic_file import write_atomic
 from rig.errors import InputError
+from rig.version import package_version
 
 STAGES = ("calibrate", "slam", "prepare", "train", "evaluate")
 MANIFEST = "stages.json"
@@ -85,8 +87,9 @@ def _files_of(path: Path) -> list[Path]:
 
 
 def fingerprint(command: list[str], inputs: list[Path]) -> str:
-    """A digest of a stage's command line and of the size and mtime of every input file."""
-    digest = hashlib.sha256(json.dumps(command).encode())
+    """A digest of a stage's command line, the toolkit's version (an upgrade redoes the stages) and
+    the size and mtime of every input file."""
+    digest = hashlib.sha256(json.dumps([package_version(), *command]).encode())
     for path in inputs:
         for f in _files_of(path):
             stat = f.stat()
