@@ -5,7 +5,8 @@
    estimation a robot uses, fed by fake devices that speak the real wire protocols;
 3. the ground truth moved onto the recording's clock (``DIR/ground_truth``): the recorder stamps
    with its own host clock, so the true trajectory is shifted by the difference of the first
-   camera frame's stamps in the two sessions;
+   camera frame's stamps in the two sessions, and the true camera–LiDAR time offset changes by
+   how much more the LiDAR's stamps moved than the camera's (the drivers' clock estimation);
 4. ``lts reconstruct`` with the rig's nominal calibration as the starting guess (``--init``), the
    fallback mapper, training and evaluation against the ground truth.
 """
@@ -19,17 +20,41 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from eval.reconstruct import ReconstructOptions, ReconstructResult, StageRecord, reconstruct
 from rig.trajectory_io import read_tum, write_tum
 
 
-def _first_frame_ns(session: Path) -> int:
+def first_frame_ns(session: Path) -> int:
+    """Host stamp (ns) of the first camera frame of ``session``."""
     from rig.session import SessionReader
     from slam_bridge.session_streams import find_topics
 
     reader = SessionReader(session)
     topic = find_topics(reader).image
     return int(next(iter(reader.frames(topic))).t_host)
+
+
+def _scan_stamps_by_first_point(session: Path) -> dict[tuple[float, ...], int]:
+    """Host stamp (ns) of every LiDAR scan, keyed by its first point (mm): the mock LiDAR replays
+    the simulated scans point for point, so the key finds the same scan in both sessions."""
+    from rig.session import SessionReader
+    from slam_bridge.session_streams import find_topics
+
+    reader = SessionReader(session)
+    scans = reader.scans(find_topics(reader).points)
+    return {tuple(np.round(s.points[0], 3)): int(s.t_host) for s in scans if len(s.points)}
+
+
+def lidar_shift_ns(simulation: Path, recording: Path) -> int:
+    """Median shift (ns) of the recording's LiDAR stamps from the simulation's, same scans."""
+    simulated = _scan_stamps_by_first_point(simulation)
+    recorded = _scan_stamps_by_first_point(recording)
+    shifts = [t - simulated[key] for key, t in recorded.items() if key in simulated]
+    if not shifts:
+        raise RuntimeError(f"no LiDAR scan of {recording} matches one of {simulation}")
+    return int(np.median(shifts))
 
 
 def _run(command: list[str], what: str) -> None:
@@ -39,12 +64,18 @@ def _run(command: list[str], what: str) -> None:
 
 def shifted_ground_truth(sim_dir: Path, recording: Path, out: Path) -> int:
     """Write ``out/{mesh.ply, trajectory.tum, calib.yaml}``: the simulation's ground truth with the
-    trajectory on the recording's host clock; returns the shift in ns."""
+    trajectory and the time offset on the recording's host clock; returns the trajectory's shift
+    in ns."""
+    from rig.calibration import load_calibration, save_calibration
+
     truth = sim_dir / "ground_truth"
-    shift = _first_frame_ns(recording) - _first_frame_ns(sim_dir / "session.mcap")
+    shift = first_frame_ns(recording) - first_frame_ns(sim_dir / "session.mcap")
     out.mkdir(parents=True, exist_ok=True)
-    for name in ("mesh.ply", "calib.yaml"):
-        shutil.copyfile(truth / name, out / name)
+    shutil.copyfile(truth / "mesh.ply", out / "mesh.ply")
+    calibration = load_calibration(truth / "calib.yaml")
+    # time_offset_s is added to LiDAR stamps to put them on the camera's timeline.
+    calibration.time_offset_s += (shift - lidar_shift_ns(sim_dir / "session.mcap", recording)) / 1e9
+    save_calibration(calibration, out / "calib.yaml")
     trajectory = read_tum(truth / "trajectory.tum")
     write_tum(type(trajectory).from_poses(trajectory.t_ns + shift, trajectory.poses), out / "trajectory.tum")
     return shift
