@@ -82,7 +82,7 @@ def _check_pair(real_data: Path, name: str, seed: int) -> None:
     T_init = perturb(T_ref, np.random.default_rng(seed))
     result = refine_extrinsic([pair], camera, T_init)
     rot, _ = pose_difference(result.T_cam_lidar, T_ref)
-    # Measured: 0.29–0.53° on seeds 1–5 (README, calibration section). One frame of far structure
+    # Measured: 0.07–0.49° on seeds 1–5 (README, calibration section). One frame of far structure
     # does not place the LiDAR to centimetres: the refinement must say so and keep the guess's
     # translation instead of drifting.
     assert rot < 0.6, rot
