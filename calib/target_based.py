@@ -6,6 +6,14 @@ LiDAR gives it too (RANSAC plane among the points near the board). Planes are wr
 point the same way. The rotation aligns the normals (Kabsch), the translation solves
 ``n_c · t = d_c - d_l``; a robust least-squares fit then refines all six degrees with two
 constraints per LiDAR board point: on the camera's board plane, and inside the board's outline.
+The plane constraint is the point's range error along its ray (clouds are in the LiDAR frame, the
+sensor at the origin), which is where a LiDAR's noise lies: a point-to-plane distance mixes that
+noise with the point's place on the board (errors in variables) and tilts each board seen at an
+incidence θ by about σ² sin θ cos θ / (the variance of its points along the board). On the
+virtual rig's boards preset (1.5 cm range noise, exact camera poses, six noise draws of one run)
+that turned the extrinsic by 0.064° the same way in every draw (spread 0.030°, 2.1 mm); with
+range errors 0.024°, and with the refined inliers of :func:`board_points` too 0.004° (spread
+0.020°, 0.3 mm).
 Fewer than three well-spread normals leave rotation or translation undetermined: the verdict
 then says so. The uncertainty is the larger of the Jacobian's (LiDAR noise) and a jackknife over
 the poses (which also sees the camera's board-pose errors).
@@ -26,7 +34,7 @@ from calib.pointcloud_io import PointCloud
 from calib.targetless import ExtrinsicPair, ExtrinsicResult
 from rig.camera import CameraModel
 from rig.errors import InputError
-from rig.plane_fit import ransac_plane
+from rig.plane_fit import ransac_plane, refine_plane
 from rig.transforms import invert, make_transform, transform_points
 
 #: RANSAC inlier distance (m) for the LiDAR board plane, and the fewest inliers accepted.
@@ -42,6 +50,9 @@ MIN_POSES = 3
 MAX_ROT_STD_DEG = 0.1
 MAX_TRANS_STD_M = 0.01
 HUBER_SCALE_M = 0.02
+#: Rays meeting the board at a smaller cosine count as meeting it at this one (bounds the range
+#: residual of a grazing ray while the fit moves the plane).
+MIN_INCIDENCE_COS = 0.1
 #: Poses are split into this many groups (in the given order, so neighbouring frames go
 #: together) for the delete-a-group jackknife.
 JACKKNIFE_GROUPS = 8
@@ -102,10 +113,10 @@ def board_points(
     half_size: tuple[float, float],
     T_init: np.ndarray | None,
 ) -> np.ndarray:
-    """LiDAR points ``(M, 3)`` on the board: RANSAC plane inliers among the points within the
-    board outline (``half_size`` = half width and height in metres about the corners' centre) as
-    predicted by ``T_init``
-    (the whole cloud when ``T_init`` is None, which suits clouds cropped to the board)."""
+    """LiDAR points ``(M, 3)`` on the board: plane inliers (RANSAC, then :func:`refine_plane`)
+    among the points within the board outline (``half_size`` = half width and height in metres
+    about the corners' centre) as predicted by ``T_init`` (the whole cloud when ``T_init`` is
+    None, which suits clouds cropped to the board)."""
     points = cloud.points
     if T_init is not None and len(points):
         in_board = transform_points(invert(T_cam_board) @ T_init, points)
@@ -119,6 +130,9 @@ def board_points(
     if len(points) < MIN_PLANE_POINTS:
         return np.zeros((0, 3))
     _, inliers = ransac_plane(points, PLANE_THRESHOLD_M, RANSAC_ITERATIONS, max_support=RANSAC_SUPPORT_POINTS)
+    if len(inliers) < MIN_PLANE_POINTS:
+        return np.zeros((0, 3))
+    _, inliers = refine_plane(points, inliers, PLANE_THRESHOLD_M)
     if len(inliers) < MIN_PLANE_POINTS:
         return np.zeros((0, 3))
     return points[inliers]
@@ -144,23 +158,35 @@ def closed_form(camera_planes: Sequence[Plane], lidar_planes: Sequence[Plane]) -
 
 @dataclass(frozen=True)
 class _FitPose:
-    """One board pose in the fit: the camera's board ``plane``, ``T_board_cam`` ``(4, 4)`` and
-    the LiDAR board ``points`` ``(M, 3)``."""
+    """One board pose in the fit: the camera's board ``plane``, ``T_board_cam`` ``(4, 4)``, the
+    LiDAR board ``points`` ``(M, 3)`` and their unit ray ``directions`` ``(M, 3)``."""
 
     plane: Plane
     T_board_cam: np.ndarray
     points: np.ndarray
+    directions: np.ndarray
+
+    @classmethod
+    def of(cls, T_cam_board: np.ndarray, points: np.ndarray) -> _FitPose:
+        """The pose of a camera board pose ``(4, 4)`` and LiDAR board points ``(M, 3)``."""
+        directions = points / np.linalg.norm(points, axis=1, keepdims=True)
+        return cls(camera_plane(T_cam_board), invert(T_cam_board), points, directions)
 
 
 def _residuals(
     x: np.ndarray, T0: np.ndarray, poses: Sequence[_FitPose], half_size: tuple[float, float]
 ) -> np.ndarray:
-    """Point-to-plane distances, then each point's distance outside the board's outline along the
-    board's two axes (zero inside: beams find the edge only to within their spacing, so a point
-    says where the board is, never where it ends)."""
+    """Range errors (m: the measured range minus the range along the point's ray to the camera's
+    board plane), then each point's distance outside the board's outline along the board's two
+    axes (zero inside: beams find the edge only to within their spacing, so a point says where
+    the board is, never where it ends)."""
     T = make_transform(Rotation.from_rotvec(x[:3]).as_matrix(), x[3:]) @ T0
     cam = [transform_points(T, pose.points) for pose in poses]
-    plane = [pts @ pose.plane.normal - pose.plane.offset for pts, pose in zip(cam, poses, strict=True)]
+    plane = [
+        (pts @ pose.plane.normal - pose.plane.offset)
+        / np.maximum(pose.directions @ (T[:3, :3].T @ pose.plane.normal), MIN_INCIDENCE_COS)
+        for pts, pose in zip(cam, poses, strict=True)
+    ]
     outline = [
         np.maximum(np.abs(transform_points(pose.T_board_cam, pts)[:, :2]) - half_size, 0.0).ravel()
         for pts, pose in zip(cam, poses, strict=True)
@@ -208,7 +234,7 @@ def calibrate_with_board(
         pts = board_points(obs.cloud, obs.T_cam_board, half_size, T_init)
         if len(pts):
             used.append(obs.name)
-            poses.append(_FitPose(camera_plane(obs.T_cam_board), invert(obs.T_cam_board), pts))
+            poses.append(_FitPose.of(obs.T_cam_board, pts))
             planes_l.append(fit_plane(pts))
     planes_c = [pose.plane for pose in poses]
     reasons = []
