@@ -1,8 +1,12 @@
 """The built-in mapper for sessions that come without SLAM output.
 
-LiDAR odometry with KISS-ICP (scans deskewed with their per-point times), then a coarse surface by
-TSDF integration of the deskewed scans (open3d). Open3D integrates depth *images*, so each scan
-is z-buffered into the six faces of a cube map around the LiDAR and those are integrated.
+LiDAR odometry with KISS-ICP on the raw sweeps, each pose stamped at its sweep's
+information-weighted point time (:func:`calib.motion.information_time`), then a coarse surface by
+TSDF integration of the scans de-skewed with that trajectory (open3d). KISS-ICP's own de-skew
+(the previous sweep's motion applied to this one) was left off: on the virtual rig's 20 s room,
+whose robot pitches and rolls at 2–4 Hz, it left roll and pitch 0.40° / 0.32° rms off the truth;
+without it 0.07° / 0.05° (yaw 0.15° → 0.12°). Open3D integrates depth *images*, so each scan is
+z-buffered into the six faces of a cube map around the LiDAR and those are integrated.
 """
 
 from __future__ import annotations
@@ -28,6 +32,11 @@ _CUBE_FACES = [
     np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]]),  # +z
     np.array([[0, -1, 0], [-1, 0, 0], [0, 0, -1]]),  # -z
 ]
+
+
+#: Point times are binned to this (ns) for de-skewing: turning at 0.5 rad/s moves a point 5 m away
+#: by 2.5 mm in 1 ms.
+_DESKEW_BIN_NS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -72,7 +81,7 @@ def _kiss_icp(voxel_size: float, config: MapperConfig):
     kiss_config = KISSConfig()
     kiss_config.data.max_range = config.max_range_m
     kiss_config.data.min_range = config.min_range_m
-    kiss_config.data.deskew = True
+    kiss_config.data.deskew = False
     kiss_config.mapping.voxel_size = voxel_size
     return KissICP(kiss_config)
 
@@ -177,6 +186,19 @@ def fill_small_holes(depth: np.ndarray, agree: float = 0.05) -> np.ndarray:
     return filled
 
 
+def _deskewed(
+    points: np.ndarray, point_t_ns: np.ndarray, trajectory: Trajectory, pose: np.ndarray
+) -> np.ndarray:
+    """Sweep points ``(N, 3)`` taken at ``point_t_ns`` ``(N,)``, moved into the LiDAR frame of
+    ``pose`` ``(4, 4)`` with the poses ``trajectory`` interpolates (held at its ends), at
+    ``_DESKEW_BIN_NS`` steps."""
+    bins = (point_t_ns - point_t_ns.min()) // _DESKEW_BIN_NS
+    first, inverse = np.unique(bins, return_inverse=True)
+    at = trajectory.interpolate(point_t_ns.min() + first * _DESKEW_BIN_NS, clamp=True)
+    relative = np.einsum("ij,bjk->bik", invert(pose), at)[inverse]
+    return np.einsum("nij,nj->ni", relative[:, :3, :3], points) + relative[:, :3, 3]
+
+
 def run_mapper(
     scans: Iterable[Scan],
     config: MapperConfig = MapperConfig(),
@@ -184,14 +206,25 @@ def run_mapper(
 ) -> MapperResult:
     """Odometry and a TSDF mesh from LiDAR scans (in time order).
 
-    Poses are ``T_world_lidar`` with the world = the LiDAR frame at the end of the first scan,
-    stamped on the scans' host clock at the end of each sweep (KISS-ICP deskews each scan into
-    the frame of its latest point).
+    Poses are ``T_world_lidar`` with the world = the LiDAR frame of the first scan, stamped on the
+    scans' host clock at each sweep's :func:`~calib.motion.information_time`. A scan is integrated
+    once the next one's pose is known, de-skewed with the poses before, at and after it.
     """
+    from calib.motion import information_time
+
     icp = None
     tsdf = _TsdfIntegrator(config)
     t_ns: list[int] = []
     poses: list[np.ndarray] = []
+    pending: tuple[np.ndarray, np.ndarray] | None = None  # the last scan's points and their times (ns)
+
+    def integrate_pending(pose_index: int) -> None:
+        """Integrate the pending scan, whose pose is ``poses[pose_index]``."""
+        recent = Trajectory.from_poses(np.array(t_ns[-3:], dtype=np.int64), np.stack(poses[-3:]))
+        points, point_t_ns = pending
+        pose = poses[pose_index]
+        tsdf.integrate(_deskewed(points, point_t_ns, recent, pose), pose)
+
     for index, scan in enumerate(scans):
         ranges = np.linalg.norm(scan.points, axis=1)
         keep = (ranges > config.min_range_m) & (ranges < config.max_range_m)
@@ -201,15 +234,17 @@ def run_mapper(
         times = scan.point_time_s[keep].astype(np.float64)
         if icp is None:
             icp = _kiss_icp(_voxel_size(scan, config), config)
-        deskewed, _ = icp.register_frame(points, times)
-        pose = icp.last_pose.copy()
-        t_ns.append(int(scan.t_host) + round(float(times.max()) * 1e9))
-        poses.append(pose)
-        tsdf.integrate(np.asarray(deskewed), pose)
+        _, source = icp.register_frame(points, np.zeros(0))
+        t_ns.append(int(scan.t_host) + round(information_time(np.asarray(source), points, times) * 1e9))
+        poses.append(icp.last_pose.copy())
+        if pending is not None:
+            integrate_pending(-2)
+        pending = (points, int(scan.t_host) + np.round(times * 1e9).astype(np.int64))
         if progress is not None:
             progress(index)
     if len(poses) < 2:
         raise InputError(f"only {len(poses)} usable LiDAR scans; the mapper needs at least 2", field="scans")
+    integrate_pending(-1)
     trajectory = Trajectory.from_poses(np.array(t_ns, dtype=np.int64), np.stack(poses))
     return MapperResult(trajectory, tsdf.mesh(), len(poses))
 
