@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from calib.motion import ODOMETRY_POINTS_PER_VOXEL, information_time
 from rig.errors import InputError
 from rig.messages import Scan
 from rig.trajectory import Trajectory
@@ -83,6 +84,10 @@ def _kiss_icp(voxel_size: float, config: MapperConfig):
     kiss_config.data.min_range = config.min_range_m
     kiss_config.data.deskew = False
     kiss_config.mapping.voxel_size = voxel_size
+    # As in calib.motion (room session, 0.1 m voxels): 5 instead of KISS-ICP's 20 points per voxel
+    # took roll / pitch / yaw from 0.15 / 0.08 / 0.23° to 0.12 / 0.07 / 0.14° rms, ATE 1.04 to
+    # 0.86 cm, and the odometry from 48 to 20 s.
+    kiss_config.mapping.max_points_per_voxel = ODOMETRY_POINTS_PER_VOXEL
     return KissICP(kiss_config)
 
 
@@ -210,8 +215,6 @@ def run_mapper(
     scans' host clock at each sweep's :func:`~calib.motion.information_time`. A scan is integrated
     once the next one's pose is known, de-skewed with the poses before, at and after it.
     """
-    from calib.motion import information_time
-
     icp = None
     tsdf = _TsdfIntegrator(config)
     t_ns: list[int] = []
