@@ -67,7 +67,7 @@ def extrinsic_pairs(
 ) -> list[ExtrinsicPair]:
     """Image + LiDAR pairs at :func:`calm_frames` (clouds from :func:`frame_clouds`)."""
     indices = calm_frames(data, motion)
-    clouds = frame_clouds(data, indices, time_offset_s) if data.scans else []
+    clouds = frame_clouds(data, indices, time_offset_s)
     return [
         ExtrinsicPair(data.frames[i].image, cloud)
         for i, cloud in zip(indices, clouds, strict=True)
