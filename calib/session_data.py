@@ -75,6 +75,7 @@ def frame_clouds(
     clouds: list[PointCloud | None] = []
     for k, index in enumerate(indices):
         t = frame_t[index]
+        omega = np.array([np.interp(t, gyro_t, gyro[:, c]) for c in range(3)]) if len(gyro_t) else None
         points, intensity = [], []
         for j in np.flatnonzero(np.abs(scan_t - t) < 0.5):
             scan = data.scans[j]
@@ -82,8 +83,7 @@ def frame_clouds(
             near = np.abs(times - t) < window
             pts = np.asarray(scan.points, dtype=np.float64)[near]
             dt = times[near] - t
-            if len(gyro_t):
-                omega = np.array([np.interp(t, gyro_t, gyro[:, c]) for c in range(3)])
+            if omega is not None:
                 # Body rates: R(t)^T R(t_p) = exp(w (t_p - t)), applied to each point.
                 pts = Rotation.from_rotvec(np.outer(dt, omega)).apply(pts)
             if velocities is not None:

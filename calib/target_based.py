@@ -34,7 +34,7 @@ from calib.pointcloud_io import PointCloud
 from calib.targetless import ExtrinsicPair, ExtrinsicResult
 from rig.camera import CameraModel
 from rig.errors import InputError
-from rig.plane_fit import ransac_plane, refine_plane
+from rig.plane_fit import least_squares_plane, ransac_plane, refine_plane
 from rig.transforms import invert, make_transform, transform_points
 
 #: RANSAC inlier distance (m) for the LiDAR board plane, and the fewest inliers accepted.
@@ -140,9 +140,8 @@ def board_points(
 
 def fit_plane(points: np.ndarray) -> Plane:
     """Least-squares plane through points ``(M, 3)``."""
-    centroid = points.mean(axis=0)
-    _, _, vt = np.linalg.svd(points - centroid, full_matrices=False)
-    return Plane.oriented(vt[2], float(vt[2] @ centroid))
+    plane = least_squares_plane(points)
+    return Plane.oriented(plane[:3], float(-plane[3]))
 
 
 def closed_form(camera_planes: Sequence[Plane], lidar_planes: Sequence[Plane]) -> np.ndarray:

@@ -1,5 +1,5 @@
 """A seeded RANSAC plane fit, shared by the LiDAR board planes (calib) and the floor (splat),
-and a refinement of its inliers for noisy points.
+a refinement of its inliers for noisy points, and the least-squares plane both use.
 
 Written out with numpy because open3d's parallel ``segment_plane`` returned different planes
 from run to run despite ``o3d.utility.random.seed`` (the board extrinsic moved by up to 0.1°, and
@@ -34,7 +34,7 @@ def ransac_plane(
     support = (np.abs(sample @ normals.T + offsets) < threshold_m).sum(axis=0)
     best = int(np.argmax(support))
     inliers = np.flatnonzero(np.abs(points @ normals[best] + offsets[best]) < threshold_m)
-    return _least_squares_plane(points[inliers]), inliers
+    return least_squares_plane(points[inliers]), inliers
 
 
 def refine_plane(
@@ -53,7 +53,7 @@ def refine_plane(
     twice the noise, the set is cut off around that plane and the least-squares plane through it
     leans towards it (LiDAR board planes of the virtual rig, 1.5 cm range noise, 2 cm threshold:
     0.32–0.44° rms per plane, 0.28–0.31° after this refinement)."""
-    plane = _least_squares_plane(points[inliers])
+    plane = least_squares_plane(points[inliers])
     for _ in range(max_iterations):
         distance = np.abs(points @ plane[:3] + plane[3])
         sigma = 1.4826 * np.median(distance[inliers])
@@ -61,11 +61,11 @@ def refine_plane(
         if np.array_equal(refined, inliers):
             break
         inliers = refined
-        plane = _least_squares_plane(points[inliers])
+        plane = least_squares_plane(points[inliers])
     return plane, inliers
 
 
-def _least_squares_plane(points: np.ndarray) -> np.ndarray:
+def least_squares_plane(points: np.ndarray) -> np.ndarray:
     """Unit-normal plane ``(4,)`` (``n·x + d = 0``) through points ``(M, 3)`` (M >= 3), least squares."""
     centre = points.mean(axis=0)
     normal = np.linalg.svd(points - centre, full_matrices=False)[2][2]
