@@ -19,6 +19,8 @@ COLMAP_PIXEL_OFFSET = 0.5
 #: Above this many keyframes, match each only with its neighbours in time (sequential matching).
 EXHAUSTIVE_MATCHING_LIMIT = 100
 DATABASE_FILE = "database.db"
+#: Seed of the two-view geometric verification's RANSAC (reproducible matches).
+RANSAC_SEED = 0
 
 
 def colmap_camera_params(camera: CameraModel) -> list[float]:
@@ -48,10 +50,18 @@ def match_keyframes(images_dir: Path, workspace: Path, camera: CameraModel, name
         reader_options=reader,
         device=pycolmap.Device.cpu,
     )
-    if len(names) <= EXHAUSTIVE_MATCHING_LIMIT:
-        pycolmap.match_exhaustive(database, device=pycolmap.Device.cpu)
-    else:
-        pycolmap.match_sequential(database, device=pycolmap.Device.cpu)
+    # Reproducible matches (the refined poses and sparse points differed from run to run): exact
+    # nearest neighbours on one thread instead of FLANN's randomised trees, and COLMAP's random
+    # generator and each pair's RANSAC seeded instead of from the clock (its -1).
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.sift.cpu_brute_force_matcher = True
+    matching.num_threads = 1
+    verification = pycolmap.TwoViewGeometryOptions()
+    verification.ransac.random_seed = RANSAC_SEED
+    pycolmap.set_random_seed(RANSAC_SEED)
+    exhaustive = len(names) <= EXHAUSTIVE_MATCHING_LIMIT
+    match = pycolmap.match_exhaustive if exhaustive else pycolmap.match_sequential
+    match(database, matching_options=matching, verification_options=verification, device=pycolmap.Device.cpu)
     return database
 
 
