@@ -97,7 +97,9 @@ def calibrate_board_session(
     """``T_cam_lidar`` from the board poses of a session; ``T_init`` (a rough guess, a few degrees
     and centimetres) says where to look for the board in each LiDAR cloud."""
     if not data.scans:
-        raise InputError(f"no LiDAR scans on {data.topics['points']}", path=data.path, field="topics")
+        raise InputError(
+            f"no LiDAR scans on {data.topics.points or 'any topic'}", path=data.path, field="topics"
+        )
     found = board_frames(data, camera, board.target)
     indices = sorted(found)
     if len(indices) > MAX_BOARD_POSES:

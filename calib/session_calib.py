@@ -21,6 +21,7 @@ from calib.time_offset import TimeOffsetResult, estimate_time_offset
 from rig.calibration import Calibration
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.session import DEFAULT_TOPICS
 
 #: Image + LiDAR pairs used for the targetless extrinsic.
 EXTRINSIC_PAIRS = 6
@@ -36,9 +37,13 @@ def calibrate_time(
         raise InputError(f"unknown {lidar_motion!r}; expected one of {LIDAR_MOTION}", field="lidar_motion")
     use_imu = lidar_motion == "imu" or (lidar_motion == "auto" and len(data.imu) > 0)
     if use_imu and not data.imu:
-        raise InputError(f"no IMU samples on {data.topics['imu']}", path=data.path, field="topics")
+        raise InputError(
+            f"no IMU samples on {data.topics.imu or DEFAULT_TOPICS['imu']}", path=data.path, field="topics"
+        )
     if not use_imu and not data.scans:
-        raise InputError(f"no LiDAR scans on {data.topics['points']}", path=data.path, field="topics")
+        raise InputError(
+            f"no LiDAR scans on {data.topics.points or 'any topic'}", path=data.path, field="topics"
+        )
     t_cam, w_cam = camera_angular_velocity(data.frames, camera)
     t_lid, w_lid = imu_angular_velocity(data.imu) if use_imu else lidar_angular_velocity(data.scans)
     result = estimate_time_offset(t_cam, w_cam, t_lid, w_lid)

@@ -14,7 +14,7 @@ from calib.pointcloud_io import PointCloud
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.messages import Frame, ImuSample, Scan
-from rig.session import DEFAULT_TOPICS, SessionReader
+from rig.session import DEFAULT_TOPICS, SessionReader, SessionTopics, find_topics
 
 #: LiDAR time window (s) around a frame: a whole sweep when the gyro can de-skew it, a short
 #: slice otherwise.
@@ -30,21 +30,22 @@ class SessionData:
     imu: list[ImuSample]
     camera: CameraModel | None
     path: Path
-    topics: dict[str, str] = field(default_factory=lambda: dict(DEFAULT_TOPICS))
+    topics: SessionTopics = field(default_factory=lambda: SessionTopics(**DEFAULT_TOPICS))
 
 
 def load_session(path: str | Path, topics: dict[str, str] | None = None) -> SessionData:
-    """Read frames, scans, IMU samples and the camera model (None if absent) from a session."""
-    topics = {**DEFAULT_TOPICS, **(topics or {})}
+    """Read frames, scans, IMU samples and the camera model (None if absent) from a session;
+    ``topics`` chooses a role's topic (keys of :class:`rig.session.SessionTopics`) where the
+    session has several (see :func:`rig.session.find_topics`)."""
     reader = SessionReader(path)
-    present = reader.topics()
-    frames = list(reader.frames(topics["image"])) if topics["image"] in present else []
-    scans = list(reader.scans(topics["points"])) if topics["points"] in present else []
-    imu = list(reader.imu(topics["imu"])) if topics["imu"] in present else []
-    camera = reader.camera_model(topics["camera_info"]) if topics["camera_info"] in present else None
+    found = find_topics(reader, **(topics or {}), require_points=False)
+    frames = list(reader.frames(found.image))
+    scans = list(reader.scans(found.points)) if found.points else []
+    imu = list(reader.imu(found.imu)) if found.imu else []
+    camera = reader.camera_model(found.camera_info) if found.camera_info else None
     if not frames:
-        raise InputError(f"no camera frames on {topics['image']}", path=path, field="topics")
-    return SessionData(frames, scans, imu, camera, Path(path), topics)
+        raise InputError(f"no camera frames on {found.image}", path=path, field="topics")
+    return SessionData(frames, scans, imu, camera, Path(path), found)
 
 
 def frame_times(data: SessionData) -> np.ndarray:

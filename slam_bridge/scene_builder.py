@@ -17,14 +17,13 @@ from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.mesh_rays import cast_camera_rays, mesh_raycaster
 from rig.messages import Frame, Scan
-from rig.session import SessionReader
+from rig.session import SessionReader, find_topics
 from rig.trajectory import Trajectory
 from rig.transforms import invert
 from slam_bridge.colmap_matches import match_keyframes, read_correspondences
 from slam_bridge.depth_image import remove_occluded, zbuffer_depth
 from slam_bridge.pose_refinement import RefinementReport, refine_keyframe_poses
 from slam_bridge.scene import SPARSE_POINTS_FILE, Keyframe, write_scene_index
-from slam_bridge.session_streams import find_topics
 from slam_bridge.slam_dir import MESH_FILE, load_slam_dir
 from slam_bridge.sparse_points import triangulate_keyframes
 

@@ -3,7 +3,8 @@
 Writing (:class:`SessionWriter`, synchronous; :class:`SessionRecorder`, threaded with a bounded
 queue), reading (:class:`SessionReader`, tolerant of truncated files), ``rig info``
 (:func:`session_info`), ``rig recover`` (:func:`recover`), ``rig replay`` (:func:`replay`), and
-others' recordings through a topic map (:func:`read_foreign`).
+others' recordings through a topic map (:func:`read_foreign`), and each role's topic found by message
+type (:func:`find_topics`).
 """
 
 from rig.session.foreign import (
@@ -18,6 +19,7 @@ from rig.session.reader import SessionMessage, SessionReader, TopicSummary
 from rig.session.recorder import DROP_POLICIES, STATUS_METADATA, SessionRecorder
 from rig.session.recover import RECOVERY_METADATA, recover
 from rig.session.replay import replay
+from rig.session.topics import SessionTopics, find_topics
 from rig.session.writer import DEFAULT_TOPICS, SESSION_METADATA, SessionWriter
 
 __all__ = [
@@ -31,8 +33,10 @@ __all__ = [
     "SessionMessage",
     "SessionReader",
     "SessionRecorder",
+    "SessionTopics",
     "SessionWriter",
     "TopicSummary",
+    "find_topics",
     "list_topics",
     "read_foreign",
     "read_foreign_trajectory",
