@@ -248,7 +248,7 @@ def session_command(
     """Calibrate what a session supports: camera model, time offset, and with --init the extrinsic
     (target-based with --board, else targetless)."""
     from calib.board_session import board_geometry
-    from calib.session_calib import calibrate_session
+    from calib.session_calib import calibrate_session, report_lines
     from rig.calibration import load_calibration, save_calibration
 
     start = load_calibration(init) if init is not None else None
@@ -265,11 +265,6 @@ def session_command(
     if json_out:
         emit_json(summary)
         return
-    for step in ("time", "extrinsic"):
-        block = report[step]
-        console.print(
-            f"{step}: {block['verdict']}"
-            + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
-            + (" — not applied, the --init value is kept" if block.get("applied") is False else "")
-        )
+    for line in report_lines(report):
+        console.print(line)
     console.print(f"wrote {out}")

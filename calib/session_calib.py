@@ -135,3 +135,17 @@ def calibrate_session(
             calibration.T_cam_lidar = result.T_cam_lidar
     calibration.quality = {"time": report["time"], "extrinsic": report["extrinsic"]}
     return calibration, report
+
+
+def report_lines(report: dict[str, Any]) -> list[str]:
+    """One line per step of a :func:`calibrate_session` report: its verdict, the reasons, and
+    whether the result was applied."""
+    lines = []
+    for step in ("time", "extrinsic"):
+        block = report[step]
+        lines.append(
+            f"{step}: {block['verdict']}"
+            + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
+            + (" — not applied, the --init value is kept" if block.get("applied") is False else "")
+        )
+    return lines

@@ -1,8 +1,8 @@
 """eval: photometric and geometric metrics, leaned-view holes, physics collision test, the
-evaluation of a training run and its HTML report (and, to come, benchmarks).
+evaluation of a training run (``lts eval``) and its HTML report.
 
-The offline ``lts`` command line is mounted in :mod:`eval.cli`. Names are imported on first use
-(PEP 562) so that ``lts --help``, which imports this package, does not load torch.
+Names are imported on first use (PEP 562) so that ``lts --help``, which imports this package, does
+not load torch.
 """
 
 from __future__ import annotations

@@ -5,41 +5,13 @@ from __future__ import annotations
 from dataclasses import asdict
 from pathlib import Path
 
-import numpy as np
 import typer
 
 from rig.cli_support import console, emit_json
-from rig.errors import InputError
 
 app = typer.Typer(
     help="Import mesh-SLAM output (mesh + trajectory) into a SLAM folder.", no_args_is_help=True
 )
-
-IMPORT_FORMATS = ("immesh", "pin-slam", "fast-lio", "generic")
-
-
-def detect_import_format(source: Path, explicit_files: bool = False) -> str:
-    """The import format of a mapper's output folder, when its files make it unambiguous (a bare
-    bag is ImMesh's: no other format imports one alone)."""
-    from slam_bridge.immesh import LOG_NAME, MESH_NAME
-    from slam_bridge.mapper_bag import is_bag
-
-    if not explicit_files and is_bag(source):
-        return "immesh"
-    if explicit_files or source.is_file():
-        return "generic"
-    if not source.is_dir():
-        raise InputError("no such folder or file", path=source)
-    if (source / MESH_NAME).is_file() or (source / "Log" / LOG_NAME).is_file():
-        return "immesh"
-    if (source / "mesh").is_dir() and any(source.glob("*_poses_tum.txt")):
-        return "pin-slam"
-    if (source / "scans.pcd").is_file() or (source / "PCD" / "scans.pcd").is_file():
-        return "fast-lio"
-    raise InputError(
-        f"cannot tell which mapper wrote this folder; give --format ({', '.join(IMPORT_FORMATS)})",
-        path=source,
-    )
 
 
 @app.command("import")
@@ -87,46 +59,17 @@ def import_command(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Import a mapper's mesh and trajectory: clean the mesh and write the SLAM folder."""
-    fmt = fmt or detect_import_format(source, explicit_files=mesh is not None)
-    if fmt == "immesh":
-        from slam_bridge.immesh import ODOMETRY_TOPIC, import_immesh
+    from slam_bridge.slam_import import import_slam_output, import_summary
 
-        report = import_immesh(
-            source, out, bag=bag, odometry_topic=odometry_topic or ODOMETRY_TOPIC, cloud_topic=cloud_topic
-        )
-    elif fmt == "pin-slam":
-        from slam_bridge.pin_slam import import_pin_slam
-
-        report = import_pin_slam(source, out)
-    elif fmt == "fast-lio":
-        from slam_bridge.fast_lio import ODOMETRY_TOPIC, import_fast_lio
-
-        report = import_fast_lio(source, out, trajectory, odometry_topic or ODOMETRY_TOPIC, bag)
-    elif fmt == "generic":
-        from slam_bridge.generic import MESH_SUFFIXES, TRAJECTORY_SUFFIXES, find_single, import_generic
-
-        mesh_path = mesh or (source if source.is_file() else find_single(source, MESH_SUFFIXES, "mesh"))
-        traj_path = trajectory or find_single(source, TRAJECTORY_SUFFIXES, "trajectory")
-        report = import_generic(mesh_path, traj_path, out, times_path=times, rate_hz=rate)
-    else:
-        raise InputError(
-            f"unknown format {fmt!r}; expected one of {', '.join(IMPORT_FORMATS)}", field="--format"
-        )
-    summary = {"out": str(out), **asdict(report)}
+    report = import_slam_output(
+        source, out, fmt, mesh=mesh, trajectory=trajectory, bag=bag, odometry_topic=odometry_topic,
+        cloud_topic=cloud_topic, times=times, rate=rate,
+    )  # fmt: skip
     if json_out:
-        emit_json(summary)
+        emit_json({"out": str(out), **asdict(report)})
         return
-    console.print(
-        f"wrote {out}/mesh.ply and trajectory.tum (removed {report.unused_vertices} unused vertices, "
-        f"{report.degenerate_faces} degenerate and {report.duplicate_faces} duplicate faces; "
-        f"re-oriented {report.flipped_faces} faces)"
-    )
-    if "trajectory_from" in summary:
-        checked = summary.get("log_vs_bag_m")
-        console.print(
-            f"mesh from {summary['mesh_from']}; trajectory from {summary['trajectory_from']}"
-            + ("" if checked is None else f" (the log agrees to {checked * 1000:.2f} mm)")
-        )
+    for line in import_summary(report, out):
+        console.print(line)
 
 
 @app.command("run")
@@ -149,36 +92,18 @@ def run_command(
     from rich.progress import Progress
 
     from rig.calibration import load_calibration
-    from rig.session import SessionReader
-    from slam_bridge.fallback_mapper import MapperConfig, run_mapper
-    from slam_bridge.mesh_cleanup import clean_mesh
-    from slam_bridge.session_streams import find_topics
-    from slam_bridge.slam_dir import write_slam_dir
+    from slam_bridge.fallback_mapper import MapperConfig
+    from slam_bridge.map_session import map_session
 
     if calib is not None:
         load_calibration(calib)
-    reader = SessionReader(session)
-    topic = find_topics(reader, points=points_topic).points
-    count = reader.topics()[topic].count
     config = MapperConfig(voxel_size_m=voxel, tsdf_voxel_m=tsdf_voxel)
     with Progress(console=console, transient=True) as bar:
-        task = bar.add_task("mapping (KISS-ICP + TSDF)", total=count)
-        result = run_mapper(reader.scans(topic), config, progress=lambda i: bar.update(task, completed=i + 1))
-    mesh, _report = clean_mesh(
-        result.mesh.vertices, result.mesh.faces, viewpoints=result.trajectory.translations
-    )
-    write_slam_dir(out, mesh, result.trajectory)
-    summary = {
-        "out": str(out),
-        "scans_used": result.scans_used,
-        "poses": len(result.trajectory),
-        "faces": len(mesh.faces),
-        "path_length_m": float(np.linalg.norm(np.diff(result.trajectory.translations, axis=0), axis=1).sum()),
-    }
+        task = bar.add_task("mapping (KISS-ICP + TSDF)", total=None)
+        summary = map_session(
+            session, out, config, points_topic, progress=lambda i, n: bar.update(task, completed=i, total=n)
+        )
     if json_out:
-        emit_json(summary)
+        emit_json(asdict(summary))
         return
-    console.print(
-        f"wrote {out}/mesh.ply ({summary['faces']} faces) and trajectory.tum ({summary['poses']} poses, "
-        f"{summary['path_length_m']:.2f} m)"
-    )
+    console.print(summary.describe())

@@ -37,6 +37,6 @@ def lts_cli(monkeypatch, capsys):
     ``(status, stdout, stderr)``."""
     from console_script import run_console_script
 
-    from eval.cli import main
+    from lts.cli import main
 
     return lambda *args: run_console_script(main, list(args), monkeypatch, capsys)

@@ -1,4 +1,4 @@
-"""Running a console-script entry point (``rig.cli.main``, ``eval.cli.main``) inside a test."""
+"""Running a console-script entry point (``rig.cli.main``, ``lts.cli.main``) inside a test."""
 
 from __future__ import annotations
 

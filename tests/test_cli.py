@@ -19,7 +19,7 @@ def test_help_works(script: str) -> None:
 def test_every_lts_command_has_help() -> None:
     import typer.main
 
-    from eval.cli import app
+    from lts.cli import app
 
     group = typer.main.get_command(app)
 
@@ -34,7 +34,7 @@ def test_every_lts_command_has_help() -> None:
 
 def test_importing_packages_loads_no_hardware_or_heavy_library() -> None:
     code = (
-        "import sys, rig, calib, slam_bridge, splat, eval, eval.cli, rig.cli;"
+        "import sys, rig, calib, slam_bridge, splat, eval, lts, lts.cli, rig.cli;"
         "heavy = [m for m in ('depthai', 'open3d', 'usb', 'serial', 'ouster') if m in sys.modules];"
         "print(heavy); sys.exit(1 if heavy else 0)"
     )

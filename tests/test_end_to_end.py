@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from eval.demo import first_frame_ns
+from lts.demo import first_frame_ns
 from rig.calibration import load_calibration
 from rig.session import SessionReader
 

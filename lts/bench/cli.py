@@ -1,4 +1,5 @@
-"""``lts bench train|ablation|noise``: training benchmarks (mounted on the bench group by eval/cli.py)."""
+"""``lts bench``: the benchmarks — rasteriser speed, training run time against error, the ablation
+table, the warm-start noise curve and the stress suite."""
 
 from __future__ import annotations
 
@@ -6,7 +7,10 @@ from pathlib import Path
 
 import typer
 
+from lts.stress.cli import bench_stability_command
 from rig.cli_support import console, emit_json
+
+bench_app = typer.Typer(name="bench", help="Benchmarks (timings and memory).", no_args_is_help=True)
 
 SCENE_OPTION = typer.Option(None, "--scene", help="Prepared scene folder (default: a new virtual-rig room).")
 GT_OPTION = typer.Option(None, "--gt", help="Virtual-rig ground-truth folder of --scene's session.")
@@ -29,6 +33,7 @@ def _finish(result: dict, json_out: bool) -> None:
         emit_json(result)
 
 
+@bench_app.command("train")
 def bench_train_command(
     iterations: list[int] = typer.Option([300, 600, 1200], "--iterations", "-n", help="Iteration budgets."),
     triangles: list[int] = typer.Option(
@@ -41,12 +46,13 @@ def bench_train_command(
     json_out: bool = JSON_OPTION,
 ) -> None:
     """Run time against error: sweep iteration and triangle budgets; the Pareto front (time vs Chamfer)."""
-    from eval.bench_training import bench_train, resolve_scene
+    from lts.bench.training import bench_train, resolve_scene
 
     bench = resolve_scene(scene, gt, out, not full, _log)
     _finish(bench_train(bench, out, iterations, triangles, _log), json_out)
 
 
+@bench_app.command("ablation")
 def bench_ablation_command(
     preset: str = typer.Option("default", help="Training preset for every method."),
     scene: Path | None = SCENE_OPTION,
@@ -56,12 +62,13 @@ def bench_ablation_command(
     json_out: bool = JSON_OPTION,
 ) -> None:
     """Ours vs the photometric-only TS+ baseline vs the ablations on one scene (Table III analogue)."""
-    from eval.bench_training import bench_ablation, resolve_scene
+    from lts.bench.training import bench_ablation, resolve_scene
 
     bench = resolve_scene(scene, gt, out, not full, _log)
     _finish(bench_ablation(bench, out, preset, _log), json_out)
 
 
+@bench_app.command("noise")
 def bench_noise_command(
     noise: list[float] = typer.Option(
         [0.0, 0.05, 0.1, 0.2, 0.3], "--noise", help="Vertex noise σ in metres."
@@ -74,7 +81,38 @@ def bench_noise_command(
     json_out: bool = JSON_OPTION,
 ) -> None:
     """Quality against Gaussian noise on the warm-start mesh vertices (Fig. 6 analogue)."""
-    from eval.bench_training import bench_noise, resolve_scene
+    from lts.bench.training import bench_noise, resolve_scene
 
     bench = resolve_scene(scene, gt, out, not full, _log)
     _finish(bench_noise(bench, out, noise, preset, _log), json_out)
+
+
+@bench_app.command("raster")
+def bench_raster(
+    json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
+    triangles: list[int] = typer.Option([20_000, 100_000], "--triangles", "-n", help="Scene sizes."),
+    width: int = typer.Option(320, help="Image width in pixels."),
+    height: int = typer.Option(240, help="Image height in pixels."),
+    repeats: int = typer.Option(5, min=1, help="Timed runs per row (median; one warm-up first)."),
+) -> None:
+    """Forward+backward time and peak memory of every available rasteriser backend."""
+    from splat.raster.bench import BenchRow, available_backends, run_bench
+
+    backends = available_backends()
+    console.print(f"backends: {', '.join(backends)}; {width}x{height}, 2-20 px triangles", highlight=False)
+
+    def report(row: BenchRow) -> None:
+        console.print(
+            f"  {row.backend:<10} {row.n_triangles:>7} triangles  {row.ms_fwd_bwd:9.1f} ms  "
+            f"{row.peak_mb:8.1f} MB",
+            highlight=False,
+        )
+
+    result = run_bench(triangles, width, height, repeats, backends, report)
+    for backend, x in result["speedup_vs_reference"].items():
+        console.print(f"  {backend}: {x:.1f}x faster than the reference", highlight=False)
+    if json_out:
+        emit_json(result)
+
+
+bench_app.command("stability")(bench_stability_command)

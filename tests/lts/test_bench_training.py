@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from eval.bench_training import _plot_bars, _plot_noise, _plot_pareto, pareto_front
+from lts.bench.training import _plot_bars, _plot_noise, _plot_pareto, pareto_front
 
 
 def _row(seconds: float, chamfer: float, **extra) -> dict:

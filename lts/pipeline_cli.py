@@ -1,12 +1,17 @@
-"""``lts reconstruct`` and ``lts demo`` (mounted by eval/cli.py)."""
+"""``lts reconstruct`` and ``lts demo``: the pipeline's commands, with a table of stages and metrics."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from rig.cli_support import console, emit_json
+
+if TYPE_CHECKING:
+    from lts.pipeline import ReconstructResult
 
 SUMMARY_KEYS = ("psnr", "ssim", "lpips", "fscore", "precision", "recall", "chamfer_m", "hole_fraction_leaned",
                 "n_triangles", "train_seconds")  # fmt: skip
@@ -16,7 +21,21 @@ def _log(message: str) -> None:
     console.print(message, highlight=False, markup=False)
 
 
-def _summary(result, extra_stages=()) -> dict:
+def _run_stages(job: Callable[[], tuple[ReconstructResult, list]]) -> tuple[ReconstructResult, list]:
+    """Run ``job``; a training stopped by Ctrl-C (checkpoint saved) or diverged ends with its message."""
+    from splat.trainer import TrainingDivergedError, TrainingInterruptedError
+
+    try:
+        return job()
+    except TrainingInterruptedError as exc:
+        console.print(f"{exc}; rerun the same command to continue", highlight=False)
+        raise typer.Exit(130) from None
+    except TrainingDivergedError as exc:
+        console.print(f"error: training diverged: {exc}", highlight=False)
+        raise typer.Exit(1) from None
+
+
+def _summary(result: ReconstructResult, extra_stages=()) -> dict:
     stages = [*extra_stages, *result.stages]
     return {
         **result.metrics,
@@ -47,7 +66,7 @@ def _print_table(summary: dict) -> None:
 
 
 def reconstruct_command(
-    session: Path = typer.Argument(..., help="Session .mcap (rig record, lts sim, or a converted bag)."),
+    session: Path = typer.Argument(..., help="Session .mcap (rig record or lts sim)."),
     out: Path = typer.Option(
         ..., "--out", "-o", help="Run folder: calib.yaml, slam/, scene/, train/, report."
     ),
@@ -84,16 +103,12 @@ def reconstruct_command(
     unchanged, so a crash or Ctrl-C resumes where it stopped (training from its last checkpoint)
     and changing a training option retrains without redoing calibration or mapping.
     """
-    from eval.reconstruct import ReconstructOptions, StageFailedError, reconstruct
+    from lts.pipeline import ReconstructOptions, reconstruct
 
     options = ReconstructOptions(
         session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval
     )
-    try:
-        result = reconstruct(options, _log)
-    except StageFailedError as exc:
-        console.print(f"error: {exc}", highlight=False)
-        raise typer.Exit(1) from None
+    result, _ = _run_stages(lambda: (reconstruct(options, _log), []))
     summary = _summary(result)
     _print_table(summary)
     if json_out:
@@ -110,14 +125,9 @@ def demo_command(
     ),
 ) -> None:
     """Simulate a room, record it through the mock devices, reconstruct it and score it against the truth."""
-    from eval.demo import run_demo
-    from eval.reconstruct import StageFailedError
+    from lts.demo import run_demo
 
-    try:
-        result, demo_stages = run_demo(out, quick, _log)
-    except StageFailedError as exc:
-        console.print(f"error: {exc}", highlight=False)
-        raise typer.Exit(1) from None
+    result, demo_stages = _run_stages(lambda: run_demo(out, quick, _log))
     summary = _summary(result, demo_stages)
     _print_table(summary)
     if json_out:

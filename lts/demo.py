@@ -9,6 +9,9 @@
    how much more the LiDAR's stamps moved than the camera's (the drivers' clock estimation);
 4. ``lts reconstruct`` with the rig's nominal calibration as the starting guess (``--init``), the
    fallback mapper, training and evaluation against the ground truth.
+
+Simulating and recording are stages of the same :class:`~lts.stages.StageRunner` as the
+reconstruction's, so a rerun reuses them.
 """
 
 from __future__ import annotations
@@ -16,20 +19,19 @@ from __future__ import annotations
 import shutil
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from eval.reconstruct import ReconstructOptions, ReconstructResult, StageRecord, reconstruct
+from lts.pipeline import ReconstructOptions, ReconstructResult, reconstruct
+from lts.stages import StageRecord, StageRunner
 from rig.trajectory_io import read_tum, write_tum
 
 
 def first_frame_ns(session: Path) -> int:
     """Host stamp (ns) of the first camera frame of ``session``."""
-    from rig.session import SessionReader
-    from slam_bridge.session_streams import find_topics
+    from rig.session import SessionReader, find_topics
 
     reader = SessionReader(session)
     topic = find_topics(reader).image
@@ -39,8 +41,7 @@ def first_frame_ns(session: Path) -> int:
 def _scan_stamps_by_first_point(session: Path) -> dict[tuple[float, ...], int]:
     """Host stamp (ns) of every LiDAR scan, keyed by its first point (mm): the mock LiDAR replays
     the simulated scans point for point, so the key finds the same scan in both sessions."""
-    from rig.session import SessionReader
-    from slam_bridge.session_streams import find_topics
+    from rig.session import SessionReader, find_topics
 
     reader = SessionReader(session)
     scans = reader.scans(find_topics(reader).points)
@@ -57,9 +58,41 @@ def lidar_shift_ns(simulation: Path, recording: Path) -> int:
     return int(np.median(shifts))
 
 
-def _run(command: list[str], what: str) -> None:
-    if subprocess.run(command).returncode != 0:
-        raise RuntimeError(f"{what} failed: {' '.join(command)}")
+def simulate_room(out: Path, quick: bool, seed: int = 0) -> None:
+    """The virtual rig's ``room`` preset into ``out`` (``session.mcap``, ``ground_truth/``);
+    ``quick``: its 3 s, 160×120 run."""
+    from rig.sim.config import SimConfig
+    from rig.sim.simulate import simulate
+
+    config = SimConfig(preset="room", seed=seed)
+    simulate(config.quick() if quick else config, out)
+
+
+def session_duration_s(session: Path) -> float:
+    """Seconds from the first to the last message of ``session``."""
+    from rig.session import SessionReader
+
+    topics = SessionReader(session).topics().values()
+    return (max(t.last_t for t in topics) - min(t.first_t for t in topics)) / 1e9
+
+
+def record_through_mock_devices(sim_dir: Path, out: Path) -> None:
+    """``rig record --sim``: the robot-side recorder (its own process, in real time) fed by mock
+    devices replaying ``sim_dir``; one pass of the scene, written to ``out`` when complete."""
+    partial = out.with_suffix(".partial.mcap")
+    duration = f"{session_duration_s(sim_dir / 'session.mcap'):.2f}"
+    command = [
+        str(Path(sys.executable).with_name("rig")),
+        "record",
+        "--sim",
+        str(sim_dir),
+        "--out",
+        str(partial),
+    ]
+    # The mock devices replay the scene in a loop: record one pass, not the jump back to its start.
+    if subprocess.run([*command, "--duration", duration]).returncode != 0:
+        raise RuntimeError(f"rig record failed: {' '.join(command[1:])}")
+    partial.replace(out)
 
 
 def shifted_ground_truth(sim_dir: Path, recording: Path, out: Path) -> int:
@@ -85,32 +118,12 @@ def run_demo(
     out: Path, quick: bool, log: Callable[[str], None] = print
 ) -> tuple[ReconstructResult, list[StageRecord]]:
     """Simulate, record and reconstruct; returns the reconstruction and the demo's own stages."""
-    bin_dir = Path(sys.executable).parent
     sim_dir, session, gt = out / "sim", out / "session.mcap", out / "ground_truth"
-    stages = []
-    if not (sim_dir / "session.mcap").is_file():
-        started = time.perf_counter()
-        log("[simulate] lts sim (room)")
-        _run(
-            [str(bin_dir / "lts"), "sim", str(sim_dir), "--preset", "room", *(["--quick"] if quick else [])],
-            "lts sim",
-        )
-        stages.append(StageRecord("simulate", "ran", round(time.perf_counter() - started, 2)))
-    if not session.is_file():
-        from rig.session import SessionReader
-
-        summary = SessionReader(sim_dir / "session.mcap").topics()
-        duration_s = (
-            max(t.last_t for t in summary.values()) - min(t.first_t for t in summary.values())
-        ) / 1e9
-        started = time.perf_counter()
-        log(f"[record] rig record --sim ({duration_s:.0f} s through the mock devices)")
-        partial = out / "session.partial.mcap"
-        # The mock devices replay the scene in a loop: record one pass, not the jump back to its start.
-        _run([str(bin_dir / "rig"), "record", "--sim", str(sim_dir), "--out", str(partial),
-              "--duration", f"{duration_s:.2f}"], "rig record")  # fmt: skip
-        partial.replace(session)
-        stages.append(StageRecord("record", "ran", round(time.perf_counter() - started, 2)))
+    stages = StageRunner(out, ("simulate", "record"), log)
+    key = ["lts sim", str(sim_dir), "--preset", "room", *(["--quick"] if quick else [])]
+    stages.run("simulate", key, [], sim_dir / "session.mcap", lambda: simulate_room(sim_dir, quick))
+    key = ["rig record", "--sim", str(sim_dir), "--out", str(session)]
+    stages.run("record", key, [sim_dir], session, lambda: record_through_mock_devices(sim_dir, session))
     shift = shifted_ground_truth(sim_dir, session, gt)
     log(f"[ground truth] trajectory shifted by {shift / 1e9:.3f} s onto the recording's clock")
     options = ReconstructOptions(
@@ -118,4 +131,4 @@ def run_demo(
         # 3 s at one keyframe per 0.5 s would leave no keyframe to test on.
         preset="fast" if quick else "default", keyframe_interval_s=0.2 if quick else None,
     )  # fmt: skip
-    return reconstruct(options, log), stages
+    return reconstruct(options, log), stages.records

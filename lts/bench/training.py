@@ -1,7 +1,7 @@
 """Benchmarks of training: run time against error, the ablation table, the warm-start noise curve.
 
-Each trains on one virtual-rig scene (made here with ``lts sim`` → ``lts slam run`` →
-``lts prepare``, or given), scores every run against the ground truth with the culled-mesh
+Each trains on one virtual-rig scene (simulated, mapped and prepared here through the pipeline's
+stages, or given), scores every run against the ground truth with the culled-mesh
 protocol (:mod:`eval.ground_truth`), writes a JSON table and a PNG plot, and returns the table.
 """
 
@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -36,33 +34,28 @@ class BenchScene:
     gt_dir: Path
 
 
-def _lts(*args: str) -> None:
-    """Run one ``lts`` command of this installation (errors surface with the command's output)."""
-    command = [str(Path(sys.executable).with_name("lts")), *args]
-    done = subprocess.run(command, capture_output=True, text=True)
-    if done.returncode != 0:
-        tail = (done.stderr or done.stdout).strip().splitlines()[-3:]
-        raise RuntimeError(f"{' '.join(command[1:3])} failed: {' | '.join(tail)}")
-
-
 def virtual_scene(out: Path, quick: bool = True, seed: int = 0, log: Callable = print) -> BenchScene:
-    """Simulate a ``room`` session, map it with the fallback mapper and prepare its scene under
-    ``out`` (reused when already there). ``quick``: the simulator's 3 s, 160×120 run."""
-    scene_dir, gt_dir = out / "scene", out / "sim" / "ground_truth"
-    if (scene_dir / "scene.json").is_file() and (gt_dir / "mesh.ply").is_file():
-        return BenchScene(scene_dir, gt_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    calib = str(gt_dir / "calib.yaml")
-    session = str(out / "sim" / "session.mcap")
-    log("bench scene: simulating the room" + (" (quick)" if quick else ""))
-    _lts("sim", str(out / "sim"), "--preset", "room", "--seed", str(seed), *(["--quick"] if quick else []))
-    log("bench scene: fallback mapper")
-    _lts("slam", "run", session, "--calib", calib, "--out", str(out / "slam"))
-    log("bench scene: keyframes (with SfM points for the TS+ baseline)")
+    """Simulate a ``room`` session, map it with the fallback mapper and prepare its scene (with SfM
+    points for the TS+ baseline) under ``out``, each stage reused when up to date. ``quick``: the
+    simulator's 3 s, 160×120 run."""
+    from lts.demo import simulate_room
+    from lts.pipeline import build_scene, map_session, prepare_key
+    from lts.stages import StageRunner
+    from slam_bridge.prepare_config import PrepareConfig
+
+    sim, slam, scene = out / "sim", out / "slam", out / "scene"
+    session, calib = sim / "session.mcap", sim / "ground_truth" / "calib.yaml"
     # The quick run lasts 3 s: one keyframe per 0.5 s would leave none to test on.
-    _lts("prepare", session, "--calib", calib, "--slam", str(out / "slam"), "--out", str(scene_dir),
-         "--sparse-points", *(["--keyframe-interval", "0.2"] if quick else []))  # fmt: skip
-    return BenchScene(scene_dir, gt_dir)
+    keyframes = PrepareConfig(keyframe_interval_s=0.2 if quick else 0.5, sparse_points=True)
+    stages = StageRunner(out, ("simulate", "slam", "prepare"), log)
+    key = ["lts sim", str(sim), "--preset", "room", "--seed", str(seed), *(["--quick"] if quick else [])]
+    stages.run("simulate", key, [], session, lambda: simulate_room(sim, quick, seed))
+    stages.run("slam", ["lts slam run", str(session)], [session], slam / "mesh.ply",
+               lambda: map_session(session, slam, log))  # fmt: skip
+    key = ["lts prepare", str(session), *prepare_key(keyframes)]
+    stages.run("prepare", key, [session, slam], scene / "scene.json",
+               lambda: build_scene(session, calib, slam, scene, keyframes, log))  # fmt: skip
+    return BenchScene(scene, sim / "ground_truth")
 
 
 def train_and_score(bench: BenchScene, config, run_dir: Path, threshold_m: float = 0.1) -> dict[str, Any]:

@@ -1,0 +1,228 @@
+"""``lts reconstruct``: the whole offline job on one recording, resumable stage by stage.
+
+=========  ==============================================  ==============================
+stage      what                                            output in RUN_DIR
+=========  ==============================================  ==============================
+calibrate  ``--calib`` copied, or the session calibrated   ``calib.yaml``
+           from the rough ``--init`` (time offset,
+           extrinsic; only ``ok`` results are applied)
+slam       ``--slam`` imported, or the fallback mapper     ``slam/``
+prepare    keyframes, LiDAR points, normal priors          ``scene/``
+train      triangle splatting (resumed from its            ``train/``
+           checkpoint when an earlier attempt stopped)
+evaluate   metrics against ``--gt`` and the report         ``train/eval.json``, ``report.html``
+=========  ==============================================  ==============================
+
+Each stage calls its package's entry point in this process, through one
+:class:`~lts.stages.StageRunner`: a stage whose inputs and options are unchanged since it
+finished is skipped, so a crash or Ctrl-C resumes at the stage that stopped. A training folder
+made with other options or on an older scene is kept as ``train.previous-N``, never deleted.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from lts.stages import StageRecord, StageRunner
+from rig.errors import InputError
+
+if TYPE_CHECKING:
+    from slam_bridge.prepare_config import PrepareConfig
+    from splat.config import TrainConfig
+
+STAGES = ("calibrate", "slam", "prepare", "train", "evaluate")
+
+
+@dataclass
+class ReconstructOptions:
+    """What ``lts reconstruct`` was asked for."""
+
+    session: Path
+    out: Path
+    calib: Path | None = None
+    init: Path | None = None
+    slam: Path | None = None
+    gt: Path | None = None
+    method: str = "ours"
+    preset: str = "default"
+    iterations: int | None = None
+    device: str = "cpu"
+    seed: int = 0
+    keyframe_interval_s: float | None = None
+
+
+@dataclass
+class ReconstructResult:
+    run_dir: Path
+    stages: list[StageRecord] = field(default_factory=list)
+    metrics: dict = field(default_factory=dict)
+
+
+def reconstruct(o: ReconstructOptions, log: Callable[[str], None] = print) -> ReconstructResult:
+    """Run (or resume) every stage of a reconstruction into ``o.out``; see the module docstring."""
+    check_options(o)
+    stages = StageRunner(o.out, STAGES, log)
+    calib, slam, scene, train = o.out / "calib.yaml", o.out / "slam", o.out / "scene", o.out / "train"
+
+    if o.calib is not None:
+        key, inputs = ["copy", str(o.calib)], [o.calib]
+        stages.run("calibrate", key, inputs, calib, lambda: copy_calibration(o.calib, calib))
+    else:
+        key, inputs = ["lts calibrate session", str(o.session), "--init", str(o.init)], [o.session, o.init]
+        stages.run("calibrate", key, inputs, calib, lambda: calibrate(o.session, o.init, calib, log))
+
+    if o.slam is not None:
+        key, inputs = ["lts slam import", str(o.slam)], [o.slam]
+        stages.run("slam", key, inputs, slam / "mesh.ply", lambda: import_slam(o.slam, slam, log))
+    else:
+        key, inputs = ["lts slam run", str(o.session)], [o.session, calib]
+        stages.run("slam", key, inputs, slam / "mesh.ply", lambda: map_session(o.session, slam, log))
+
+    keyframes = prepare_config(o)
+    key, inputs = ["lts prepare", str(o.session), *prepare_key(keyframes)], [o.session, calib, slam]
+    prepared = stages.run(
+        "prepare", key, inputs, scene / "scene.json",
+        lambda: build_scene(o.session, calib, slam, scene, keyframes, log),
+    )  # fmt: skip
+
+    config = train_config(o)
+    stages.run(
+        "train", ["lts train", *train_key(o)], [scene], train / "model.pt",
+        lambda: train_run(scene, train, config, scene_changed=prepared.status == "ran", log=log),
+    )  # fmt: skip
+
+    key = ["lts eval", *(["--gt", str(o.gt)] if o.gt is not None else [])]
+    inputs = [scene, *(train / name for name in EVALUATED_FILES), *([o.gt] if o.gt is not None else [])]
+    stages.run("evaluate", key, inputs, train / "eval.json", lambda: evaluate(train, o.gt, log))
+    return ReconstructResult(o.out, stages.records, json.loads((train / "eval.json").read_text()))
+
+
+#: The files of a training run that ``lts eval`` reads (a change to any of them re-evaluates).
+EVALUATED_FILES = ("model.pt", "mesh.ply", "collision.obj", "summary.json")
+
+
+def check_options(o: ReconstructOptions) -> None:
+    """Refuse a missing session or calibration before any stage starts."""
+    if not o.session.is_file():
+        raise InputError("no such session file", path=o.session)
+    if o.calib is None and o.init is None:
+        raise InputError(
+            "give --calib (a full calibration) or --init (a rough T_cam_lidar for lts calibrate to "
+            "refine, with the time offset estimated from the session)",
+            field="calib",
+        )
+    if o.calib is not None:
+        from rig.calibration import load_calibration
+
+        load_calibration(o.calib)  # a bad file stops here, with its own error
+
+
+def copy_calibration(source: Path, out: Path) -> None:
+    """The calibrate stage given a finished calibration: ``source`` copied to ``out``."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(source, out)
+
+
+def calibrate(session: Path, init: Path, out: Path, log: Callable[[str], None]) -> None:
+    """The calibrate stage: the session's time offset and extrinsic refined from ``init``."""
+    from calib.session_calib import calibrate_session, report_lines
+    from rig.calibration import load_calibration, save_calibration
+
+    calibration, report = calibrate_session(session, load_calibration(init))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    save_calibration(calibration, out)
+    for line in report_lines(report):
+        log(f"  {line}")
+
+
+def import_slam(source: Path, out: Path, log: Callable[[str], None]) -> None:
+    """The slam stage given a mapper's output: imported into the SLAM folder ``out``."""
+    from slam_bridge.slam_import import import_slam_output, import_summary
+
+    for line in import_summary(import_slam_output(source, out), out):
+        log(f"  {line}")
+
+
+def map_session(session: Path, out: Path, log: Callable[[str], None]) -> None:
+    """The slam stage without a mapper's output: the fallback mapper on the session's sweeps."""
+    from slam_bridge.map_session import map_session as run_fallback_mapper
+
+    summary = run_fallback_mapper(session, out)
+    log(f"  {summary.describe()}")
+
+
+def prepare_config(o: ReconstructOptions) -> PrepareConfig:
+    """The keyframe options of ``o`` (the TS+ baseline also needs SfM points)."""
+    from slam_bridge.prepare_config import PrepareConfig
+
+    interval = {} if o.keyframe_interval_s is None else {"keyframe_interval_s": o.keyframe_interval_s}
+    return PrepareConfig(sparse_points=o.method == "tsplus", **interval)
+
+
+def prepare_key(config: PrepareConfig) -> list[str]:
+    """The options of ``config`` that the app layer sets, as ``lts prepare`` takes them."""
+    key = ["--keyframe-interval", str(config.keyframe_interval_s)]
+    return key + (["--sparse-points"] if config.sparse_points else [])
+
+
+def build_scene(
+    session: Path, calib: Path, slam: Path, out: Path, config: PrepareConfig, log: Callable[[str], None]
+) -> None:
+    """The prepare stage: a fresh scene folder ``out`` (an older one is removed first)."""
+    from rig.calibration import load_calibration
+    from slam_bridge.scene_builder import build_scene as build
+
+    shutil.rmtree(out, ignore_errors=True)
+    built = build(session, load_calibration(calib), slam, out, config)
+    log(f"  {len(built.keyframes)} keyframes")
+
+
+def train_key(o: ReconstructOptions) -> list[str]:
+    """The training options as ``lts train`` takes them."""
+    key = ["--method", o.method, "--preset", o.preset, "--seed", str(o.seed), "--device", o.device]
+    return key + (["--iterations", str(o.iterations)] if o.iterations is not None else [])
+
+
+def train_config(o: ReconstructOptions) -> TrainConfig:
+    """The :class:`~splat.config.TrainConfig` that ``lts train`` builds from ``o``'s options."""
+    from splat.config import config_from_options
+
+    return config_from_options(o.method, o.preset, seed=o.seed, device=o.device, iterations=o.iterations)
+
+
+def train_run(
+    scene: Path, run_dir: Path, config: TrainConfig, scene_changed: bool, log: Callable[[str], None]
+) -> None:
+    """The train stage: continues an interrupted run made with the same options on the same scene;
+    a run made otherwise is set aside as ``train.previous-N`` and training starts afresh."""
+    from splat.config import load_config
+    from splat.run_dir import checkpoint_path, config_path
+    from splat.trainer import train
+
+    resume = False
+    if config_path(run_dir).is_file():
+        if scene_changed or load_config(config_path(run_dir)) != config:
+            n = 1
+            while (run_dir.parent / f"{run_dir.name}.previous-{n}").exists():
+                n += 1
+            run_dir.rename(run_dir.parent / f"{run_dir.name}.previous-{n}")
+            log(f"[train] options or scene changed: the earlier run is kept as {run_dir.name}.previous-{n}")
+        elif checkpoint_path(run_dir).is_file():
+            log("[train] an earlier attempt stopped part-way: continuing from its checkpoint")
+            resume = True
+    train(scene, run_dir, config, resume=resume)
+
+
+def evaluate(run_dir: Path, gt: Path | None, log: Callable[[str], None]) -> None:
+    """The evaluate stage: ``eval.json`` and ``report.html`` in the training run."""
+    from eval.report import write_report
+    from eval.run_eval import evaluate_run, write_eval_json
+
+    evaluation = evaluate_run(run_dir, gt, log=lambda message: log(f"  {message}"))
+    write_eval_json(evaluation)
+    write_report(evaluation)

@@ -1,0 +1,61 @@
+"""The fallback mapper on a recording: its LiDAR sweeps in, a SLAM folder out (``lts slam run``
+and the slam stage of ``lts reconstruct`` without ``--slam``)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from slam_bridge.fallback_mapper import MapperConfig, run_mapper
+from slam_bridge.mesh_cleanup import clean_mesh
+from slam_bridge.slam_dir import write_slam_dir
+
+
+@dataclass(frozen=True)
+class MapSummary:
+    """What the mapper wrote into ``out``."""
+
+    out: str
+    scans_used: int
+    poses: int
+    faces: int
+    path_length_m: float
+
+    def describe(self) -> str:
+        """One line for the user."""
+        return (
+            f"wrote {self.out}/mesh.ply ({self.faces} faces) and trajectory.tum ({self.poses} poses, "
+            f"{self.path_length_m:.2f} m)"
+        )
+
+
+def map_session(
+    session: Path,
+    out: Path,
+    config: MapperConfig | None = None,
+    points_topic: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> MapSummary:
+    """Map ``session``'s LiDAR sweeps (topic ``points_topic``, found when ``None``) with the
+    fallback mapper and write the cleaned mesh and the trajectory into the SLAM folder ``out``.
+    ``progress(done, total)`` follows the sweeps."""
+    from rig.session import SessionReader, find_topics
+
+    reader = SessionReader(session)
+    topic = find_topics(reader, points=points_topic).points
+    total = reader.topics()[topic].count
+    result = run_mapper(
+        reader.scans(topic),
+        config or MapperConfig(),
+        progress=None if progress is None else lambda i: progress(i + 1, total),
+    )
+    mesh, _ = clean_mesh(result.mesh.vertices, result.mesh.faces, viewpoints=result.trajectory.translations)
+    write_slam_dir(out, mesh, result.trajectory)
+    steps = np.diff(result.trajectory.translations, axis=0)
+    return MapSummary(
+        str(out), result.scans_used, len(result.trajectory), len(mesh.faces),
+        float(np.linalg.norm(steps, axis=1).sum()),
+    )  # fmt: skip

@@ -1,0 +1,88 @@
+"""A reconstruction stage's fingerprint: what makes ``lts reconstruct`` redo a finished stage."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from lts import stages
+
+
+@pytest.fixture()
+def inputs(tmp_path: Path) -> list[Path]:
+    folder = tmp_path / "session"
+    folder.mkdir()
+    (folder / "a.bin").write_bytes(b"1234")
+    return [folder]
+
+
+def test_same_stage_same_fingerprint(inputs: list[Path]) -> None:
+    command = ["lts", "train"]
+    assert stages.fingerprint(command, inputs) == stages.fingerprint(command, inputs)
+
+
+def test_options_inputs_and_version_change_it(inputs: list[Path], monkeypatch) -> None:
+    base = stages.fingerprint(["lts", "train"], inputs)
+    assert stages.fingerprint(["lts", "train", "--preset", "fast"], inputs) != base
+    file = inputs[0] / "a.bin"
+    file.write_bytes(b"12345")
+    changed = stages.fingerprint(["lts", "train"], inputs)
+    assert changed != base
+    os.utime(file, ns=(file.stat().st_atime_ns, file.stat().st_mtime_ns + 1))
+    touched = stages.fingerprint(["lts", "train"], inputs)
+    assert touched != changed
+    monkeypatch.setattr(stages, "package_version", lambda: "999.0")
+    assert stages.fingerprint(["lts", "train"], inputs) != touched
+
+
+def _runner(folder: Path, log: list[str]) -> stages.StageRunner:
+    return stages.StageRunner(folder, ("a", "b"), log.append)
+
+
+def _write(path: Path, text: str) -> None:
+    path.write_text(text)
+
+
+def test_a_finished_stage_is_skipped_until_its_inputs_change(tmp_path: Path, inputs: list[Path]) -> None:
+    out, log = tmp_path / "a.txt", []
+    ran = _runner(tmp_path, log).run("a", ["make", "a"], inputs, out, lambda: _write(out, "a"))
+    assert ran.status == "ran"
+    again = _runner(tmp_path, log).run("a", ["make", "a"], inputs, out, lambda: pytest.fail("redone"))
+    assert again.status == "skipped" and "[a] up to date, skipped" in log
+    (inputs[0] / "a.bin").write_bytes(b"changed")
+    redone = _runner(tmp_path, log).run("a", ["make", "a"], inputs, out, lambda: _write(out, "a2"))
+    assert redone.status == "ran" and out.read_text() == "a2"
+
+
+def test_a_stage_whose_output_vanished_runs_again(tmp_path: Path, inputs: list[Path]) -> None:
+    out, log = tmp_path / "a.txt", []
+    _runner(tmp_path, log).run("a", ["make"], inputs, out, lambda: _write(out, "a"))
+    out.unlink()
+    assert _runner(tmp_path, log).run("a", ["make"], inputs, out, lambda: _write(out, "a")).status == "ran"
+
+
+def test_running_a_stage_forgets_the_stages_after_it(tmp_path: Path, inputs: list[Path]) -> None:
+    a, b, log = tmp_path / "a.txt", tmp_path / "b.txt", []
+    runner = _runner(tmp_path, log)
+    runner.run("a", ["make a"], inputs, a, lambda: _write(a, "a"))
+    runner.run("b", ["make b"], [a], b, lambda: _write(b, "b"))
+    _runner(tmp_path, log).run("a", ["make a", "--other"], inputs, a, lambda: _write(a, "a"))
+    manifest = json.loads((tmp_path / stages.MANIFEST).read_text())
+    assert set(manifest) == {"a"}
+
+
+def test_a_failed_stage_is_not_recorded_and_says_where_a_rerun_starts(
+    tmp_path: Path, inputs: list[Path]
+) -> None:
+    out, log = tmp_path / "a.txt", []
+
+    def fail() -> None:
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError, match="boom"):
+        _runner(tmp_path, log).run("a", ["make"], inputs, out, fail)
+    assert "a" not in json.loads((tmp_path / stages.MANIFEST).read_text())
+    assert any("a rerun of the same command continues from this stage" in line for line in log)
