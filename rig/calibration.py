@@ -15,6 +15,7 @@ import yaml
 
 from rig.atomic_file import write_atomic
 from rig.camera import CameraModel
+from rig.data_file import load_data_file
 from rig.errors import InputError
 from rig.plain import plain_data
 from rig.transforms import check_rigid
@@ -44,14 +45,7 @@ class Calibration:
 def load_calibration(path: str | Path) -> Calibration:
     """Read and validate ``calib.yaml``; errors name the file and the field."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise InputError(f"cannot read calibration ({exc.strerror})", path=path) from None
-    except UnicodeDecodeError:
-        raise InputError("not a text file (expected YAML)", path=path) from None
-    except yaml.YAMLError as exc:
-        raise InputError(f"not valid YAML ({exc})", path=path) from None
+    data = load_data_file(path, "YAML", "calibration")
     if not isinstance(data, dict):
         raise InputError("expected a mapping with camera, T_cam_lidar, time_offset_s", path=path)
     if "camera" not in data:

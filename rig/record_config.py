@@ -19,9 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from rig.clock import CLOCK_OPTIONS
+from rig.data_file import load_data_file
 from rig.errors import InputError
 from rig.session.recorder import DROP_POLICIES
 
@@ -130,8 +129,4 @@ def load_config(path: str | Path) -> RigConfig:
     path = Path(path)
     if not path.is_file():
         raise InputError("no such rig config", path=path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise InputError(f"not valid YAML: {exc}".splitlines()[0], path=path) from exc
-    return parse_config(data, str(path))
+    return parse_config(load_data_file(path, "YAML", "rig config"), str(path))

@@ -24,6 +24,7 @@ import numpy as np
 
 from rig.atomic_file import write_atomic
 from rig.camera import CameraModel
+from rig.data_file import load_data_file
 from rig.errors import InputError
 from rig.transforms import check_rigid
 
@@ -147,14 +148,9 @@ def load_scene(root: str | Path) -> Scene:
     """Read a scene folder written by ``lts prepare``; errors name the file and field."""
     root = Path(root)
     index = root / SCENE_FILE
-    try:
-        data = json.loads(index.read_text())
-    except OSError:
-        raise InputError("no scene.json: not a scene folder (make one with lts prepare)", path=root) from None
-    except UnicodeDecodeError:
-        raise InputError("not a text file (expected JSON)", path=index) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON ({exc})", path=index) from None
+    if not index.is_file():
+        raise InputError("no scene.json: not a scene folder (make one with lts prepare)", path=root)
+    data = load_data_file(index, "JSON", "scene index")
     if not isinstance(data, dict):
         raise InputError("expected a JSON object with camera and keyframes", path=index)
     camera = CameraModel.from_dict(data.get("camera"), path=str(index))

@@ -12,6 +12,7 @@ from typing import Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from rig.data_file import load_data_file
 from rig.errors import InputError
 
 Method = Literal["ours", "tsplus", "mesh-init", "lidar-init", "no-clone", "no-subdiv"]
@@ -182,12 +183,9 @@ def validated(values: dict[str, Any], path: Path | None = None) -> TrainConfig:
 def load_config(path: str | Path) -> TrainConfig:
     """Read ``config.yaml`` written by a run."""
     path = Path(path)
-    try:
-        values = yaml.safe_load(path.read_text())
-    except OSError:
-        raise InputError("no such config file", path=path) from None
-    except yaml.YAMLError as exc:
-        raise InputError(f"not valid YAML ({exc})", path=path) from None
+    if not path.is_file():
+        raise InputError("no such config file", path=path)
+    values = load_data_file(path, "YAML", "config")
     if not isinstance(values, dict):
         raise InputError("expected a mapping of config fields", path=path)
     return validated(values, path)
