@@ -1,12 +1,10 @@
 """The built-in mapper for sessions that come without SLAM output.
 
 LiDAR odometry with KISS-ICP on the raw sweeps, each pose stamped at its sweep's
-information-weighted point time (:func:`calib.motion.information_time`), then a coarse surface by
-TSDF integration of the scans de-skewed with that trajectory (open3d). KISS-ICP's own de-skew
-(the previous sweep's motion applied to this one) was left off: on the virtual rig's 20 s room,
-whose robot pitches and rolls at 2–4 Hz, it left roll and pitch 0.40° / 0.32° rms off the truth;
-without it 0.07° / 0.05° (yaw 0.15° → 0.12°). Open3D integrates depth *images*, so each scan is
-z-buffered into the six faces of a cube map around the LiDAR and those are integrated.
+information-weighted point time (:class:`rig.lidar_odometry.SweepOdometry`), then a coarse surface
+by TSDF integration of the scans de-skewed with that trajectory (open3d). Open3D integrates depth
+*images*, so each scan is z-buffered into the six faces of a cube map around the LiDAR and those
+are integrated.
 """
 
 from __future__ import annotations
@@ -17,8 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from calib.motion import ODOMETRY_POINTS_PER_VOXEL, information_time
+from rig.deskew import deskewed_points
 from rig.errors import InputError
+from rig.lidar_odometry import SweepOdometry
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, make_transform, transform_points
@@ -33,11 +32,6 @@ _CUBE_FACES = [
     np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]]),  # +z
     np.array([[0, -1, 0], [-1, 0, 0], [0, 0, -1]]),  # -z
 ]
-
-
-#: Point times are binned to this (ns) for de-skewing: turning at 0.5 rad/s moves a point 5 m away
-#: by 2.5 mm in 1 ms.
-_DESKEW_BIN_NS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -73,22 +67,6 @@ def _voxel_size(scan: Scan, config: MapperConfig) -> float:
         return config.voxel_size_m
     ranges = np.linalg.norm(scan.points, axis=1)
     return float(np.clip(np.median(ranges) / 30.0, 0.1, 1.0))
-
-
-def _kiss_icp(voxel_size: float, config: MapperConfig):
-    from kiss_icp.config import KISSConfig
-    from kiss_icp.kiss_icp import KissICP
-
-    kiss_config = KISSConfig()
-    kiss_config.data.max_range = config.max_range_m
-    kiss_config.data.min_range = config.min_range_m
-    kiss_config.data.deskew = False
-    kiss_config.mapping.voxel_size = voxel_size
-    # As in calib.motion (room session, 0.1 m voxels): 5 instead of KISS-ICP's 20 points per voxel
-    # took roll / pitch / yaw from 0.15 / 0.08 / 0.23° to 0.12 / 0.07 / 0.14° rms, ATE 1.04 to
-    # 0.86 cm, and the odometry from 48 to 20 s.
-    kiss_config.mapping.max_points_per_voxel = ODOMETRY_POINTS_PER_VOXEL
-    return KissICP(kiss_config)
 
 
 def cube_depth_images(points: np.ndarray, resolution: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -191,19 +169,6 @@ def fill_small_holes(depth: np.ndarray, agree: float = 0.05) -> np.ndarray:
     return filled
 
 
-def _deskewed(
-    points: np.ndarray, point_t_ns: np.ndarray, trajectory: Trajectory, pose: np.ndarray
-) -> np.ndarray:
-    """Sweep points ``(N, 3)`` taken at ``point_t_ns`` ``(N,)``, moved into the LiDAR frame of
-    ``pose`` ``(4, 4)`` with the poses ``trajectory`` interpolates (held at its ends), at
-    ``_DESKEW_BIN_NS`` steps."""
-    bins = (point_t_ns - point_t_ns.min()) // _DESKEW_BIN_NS
-    first, inverse = np.unique(bins, return_inverse=True)
-    at = trajectory.interpolate(point_t_ns.min() + first * _DESKEW_BIN_NS, clamp=True)
-    relative = np.einsum("ij,bjk->bik", invert(pose), at)[inverse]
-    return np.einsum("nij,nj->ni", relative[:, :3, :3], points) + relative[:, :3, 3]
-
-
 def run_mapper(
     scans: Iterable[Scan],
     config: MapperConfig = MapperConfig(),
@@ -212,10 +177,10 @@ def run_mapper(
     """Odometry and a TSDF mesh from LiDAR scans (in time order).
 
     Poses are ``T_world_lidar`` with the world = the LiDAR frame of the first scan, stamped on the
-    scans' host clock at each sweep's :func:`~calib.motion.information_time`. A scan is integrated
+    scans' host clock at each sweep's :func:`~rig.lidar_odometry.information_time`. A scan is integrated
     once the next one's pose is known, de-skewed with the poses before, at and after it.
     """
-    icp = None
+    odometry: SweepOdometry | None = None
     tsdf = _TsdfIntegrator(config)
     t_ns: list[int] = []
     poses: list[np.ndarray] = []
@@ -226,7 +191,7 @@ def run_mapper(
         recent = Trajectory.from_poses(np.array(t_ns[-3:], dtype=np.int64), np.stack(poses[-3:]))
         points, point_t_ns = pending
         pose = poses[pose_index]
-        tsdf.integrate(_deskewed(points, point_t_ns, recent, pose), pose)
+        tsdf.integrate(transform_points(invert(pose), deskewed_points(points, point_t_ns, recent)), pose)
 
     for index, scan in enumerate(scans):
         ranges = np.linalg.norm(scan.points, axis=1)
@@ -235,11 +200,11 @@ def run_mapper(
             continue
         points = scan.points[keep].astype(np.float64)
         times = scan.point_time_s[keep].astype(np.float64)
-        if icp is None:
-            icp = _kiss_icp(_voxel_size(scan, config), config)
-        _, source = icp.register_frame(points, np.zeros(0))
-        t_ns.append(int(scan.t_host) + round(information_time(np.asarray(source), points, times) * 1e9))
-        poses.append(icp.last_pose.copy())
+        if odometry is None:
+            odometry = SweepOdometry(_voxel_size(scan, config), config.max_range_m, config.min_range_m)
+        held_s, pose = odometry.register(points, times)
+        t_ns.append(int(scan.t_host) + round(held_s * 1e9))
+        poses.append(pose)
         if pending is not None:
             integrate_pending(-2)
         pending = (points, int(scan.t_host) + np.round(times * 1e9).astype(np.int64))
