@@ -7,20 +7,16 @@ fit finds the rotation between the frames itself, so no extrinsic is needed.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 from scipy.ndimage import median_filter
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from calib.boards import to_gray
 from rig.camera import CameraModel
+from rig.lidar_odometry import SweepOdometry
 from rig.messages import Frame, ImuSample, Scan
-
-if TYPE_CHECKING:
-    from kiss_icp.config import KISSConfig
 
 #: Frames this far apart are compared (a longer baseline steadies the essential matrix).
 FRAME_GAP = 2
@@ -32,11 +28,6 @@ MAX_PAIR_ROTATION = 0.3
 MEDIAN_WINDOW = 5
 #: Scans are thinned to about this many points before odometry (KISS-ICP voxelises them anyway).
 ODOMETRY_POINTS = 6000
-#: Neighbours of a point that give its surface normal (for :func:`information_time`).
-NORMAL_NEIGHBOURS = 10
-#: Map points kept per voxel (KISS-ICP's default is 20): only the motion between sweeps is needed,
-#: and a run over a 20 s room session's 200 sweeps took 16–17 s instead of 20–57 s (shared 2 cores).
-ODOMETRY_POINTS_PER_VOXEL = 5
 #: RANSAC threshold of the essential matrix, in normalised image units (about 1 px / focal).
 _LK_PARAMS = {"winSize": (21, 21), "maxLevel": 3}
 
@@ -91,65 +82,31 @@ def camera_angular_velocity(frames: Sequence[Frame], camera: CameraModel) -> tup
     return np.asarray(times), omega
 
 
-def _odometry_config(scans: Sequence[Scan]) -> KISSConfig:
-    """KISS-ICP settings for these scans, its own de-skew off (see :func:`lidar_poses`)."""
-    from kiss_icp.config import KISSConfig
-
-    config = KISSConfig()
+def _odometry(scans: Sequence[Scan]) -> SweepOdometry:
+    """KISS-ICP odometry with a range and voxel size that suit these scans."""
     ranges = np.concatenate(
         [np.linalg.norm(s.points[:: max(1, len(s) // 500)], axis=1) for s in scans[:20]] or [[1.0]]
     )
-    config.data.max_range = float(np.percentile(ranges, 99)) * 1.5
+    max_range = float(np.percentile(ranges, 99)) * 1.5
     # KISS-ICP's own default (range / 100), kept within what suits rooms and streets.
-    config.mapping.voxel_size = float(np.clip(config.data.max_range / 100, 0.05, 1.0))
-    config.mapping.max_points_per_voxel = ODOMETRY_POINTS_PER_VOXEL
-    config.data.deskew = False
-    return config
-
-
-def information_time(source: np.ndarray, points: np.ndarray, times: np.ndarray) -> float:
-    """When the ICP pose of a sweep that was not de-skewed holds: the times ``(N,)`` of
-    ``points`` ``(N, 3)`` averaged over the registered subset ``source`` ``(M, 3)`` (each matched to
-    its nearest point of ``points``), each weighted by its rotational information ``|p × n|²``
-    (``n``: the local surface normal)."""
-    if len(source) == 0 or len(points) < NORMAL_NEIGHBOURS:  # too few points for normals
-        return float(np.mean(times))
-    tree = cKDTree(points)
-    rows = tree.query(source)[1]
-    p = points[rows]
-    _, neighbours = tree.query(p, k=NORMAL_NEIGHBOURS)
-    local = points[neighbours] - points[neighbours].mean(axis=1, keepdims=True)
-    normals = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))[1][:, :, 0]
-    weight = np.sum(np.cross(p, normals) ** 2, axis=1)
-    if weight.sum() <= 0:  # no rotational information at all: plain mean
-        return float(np.mean(times[rows]))
-    return float(np.average(times[rows], weights=weight))
+    return SweepOdometry(float(np.clip(max_range / 100, 0.05, 1.0)), max_range)
 
 
 def lidar_poses(scans: Sequence[Scan], backward: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """KISS-ICP odometry on raw sweeps: pose times ``(J,)`` (s, host clock) and poses ``(J, 4, 4)``,
-    in scan order; ``backward`` runs the odometry from the last scan to the first.
-
-    KISS-ICP's de-skew is left off. It moves each point to the sweep's last point (versions 1.x;
-    stamping its poses at the sweep middle, as before, put them 50 ms early) with the previous
-    sweep's motion, which is wrong for a rig that pitches and rolls at a few Hz; that error moved
-    each pose, so that the virtual rig's roll and pitch rates lagged the truth by 110–130 ms (yaw
-    by 5 ms). The pose of a sweep left skewed holds at its :func:`information_time` (~12 ms before
-    the sweep middle on the virtual rig's room).
-    """
-    from kiss_icp.kiss_icp import KissICP
-
-    odometry = KissICP(_odometry_config(scans))
+    """KISS-ICP odometry on raw sweeps (:class:`rig.lidar_odometry.SweepOdometry`): pose times
+    ``(J,)`` (s, host clock, when each pose holds) and poses ``(J, 4, 4)``, in scan order;
+    ``backward`` runs the odometry from the last scan to the first."""
+    odometry = _odometry(scans)
     used = [s for s in scans if len(s) >= 100]
     times, poses = np.zeros(len(used)), np.zeros((len(used), 4, 4))
     for k in reversed(range(len(used))) if backward else range(len(used)):
         scan = used[k]
         stride = max(1, len(scan) // ODOMETRY_POINTS)
         points = np.asarray(scan.points[::stride], dtype=np.float64)
-        _, source = odometry.register_frame(points, np.zeros(0))
-        rel = np.asarray(scan.point_time_s, dtype=np.float64)[::stride]
-        times[k] = scan.t_host * 1e-9 + information_time(np.asarray(source), points, rel)
-        poses[k] = odometry.last_pose
+        held_s, poses[k] = odometry.register(
+            points, np.asarray(scan.point_time_s, dtype=np.float64)[::stride]
+        )
+        times[k] = scan.t_host * 1e-9 + held_s
     return times, poses
 
 

@@ -1,11 +1,11 @@
-"""When the ICP pose of a sweep that was not de-skewed holds (calib.motion.information_time)."""
+"""When the ICP pose of a sweep that was not de-skewed holds (rig.lidar_odometry.information_time)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from calib.motion import information_time
+from rig.lidar_odometry import SweepOdometry, information_time
 
 
 def _room_sweep(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -38,3 +38,14 @@ def test_weights_points_by_rotational_information() -> None:
 def test_one_instant_sweep() -> None:
     points, _, _ = _room_sweep(np.random.default_rng(1))
     assert information_time(points[::5], points, np.full(len(points), 0.03)) == pytest.approx(0.03)
+
+
+def test_sweep_odometry_follows_a_moving_lidar() -> None:
+    """Two sweeps of the room, the second from 5 cm further along x: the second pose moved by that."""
+    points, times, _ = _room_sweep(np.random.default_rng(2))
+    odometry = SweepOdometry(voxel_size=0.1, max_range=20.0)
+    held_s, first = odometry.register(points, times)
+    np.testing.assert_allclose(first, np.eye(4), atol=1e-9)
+    assert 0.0 < held_s < 0.1
+    _, second = odometry.register(points - [0.05, 0.0, 0.0], times)
+    np.testing.assert_allclose(second[:3, 3], [0.05, 0.0, 0.0], atol=5e-3)
