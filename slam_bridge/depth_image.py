@@ -11,22 +11,34 @@ from rig.camera import CameraModel
 from rig.transforms import transform_points
 
 
-def zbuffer_depth(points_cam: np.ndarray, camera: CameraModel, near_m: float = 0.05) -> np.ndarray:
-    """Depth image ``(H, W)`` float32 (z in metres, 0 = no return) of camera-frame points ``(N, 3)``.
-
-    Each point lands on the pixel nearest its projection; the nearest point wins.
-    """
+def nearest_returns(
+    points_cam: np.ndarray, camera: CameraModel, near_m: float = 0.05
+) -> tuple[np.ndarray, np.ndarray]:
+    """The z-buffer of camera-frame points ``(N, 3)``: each point lands on the pixel nearest its
+    projection and the nearest point (smallest z beyond ``near_m``) wins. Returns the flat pixel
+    indices ``(M,)`` (``row * W + col``, increasing) that got a point and the winning points'
+    indices ``(M,)`` into ``points_cam``."""
     points = np.asarray(points_cam, dtype=np.float64)
-    front = points[:, 2] > near_m
-    points = points[front]
-    pixels = camera.project(points)
+    candidates = np.flatnonzero(points[:, 2] > near_m)
+    pixels = camera.project(points[candidates])
     inside = camera.in_image(pixels)
+    candidates = candidates[inside]
     cols = np.round(pixels[inside, 0]).astype(np.int64)
     rows = np.round(pixels[inside, 1]).astype(np.int64)
-    depth = np.full(camera.height * camera.width, np.inf)
-    np.minimum.at(depth, rows * camera.width + cols, points[inside, 2])
-    depth[~np.isfinite(depth)] = 0.0
-    return depth.reshape(camera.height, camera.width).astype(np.float32)
+    flat = rows * camera.width + cols
+    order = np.lexsort((points[candidates, 2], flat))  # by pixel, nearest first
+    first = np.ones(len(order), dtype=bool)
+    first[1:] = flat[order[1:]] != flat[order[:-1]]
+    return flat[order[first]], candidates[order[first]]
+
+
+def zbuffer_depth(points_cam: np.ndarray, camera: CameraModel, near_m: float = 0.05) -> np.ndarray:
+    """Depth image ``(H, W)`` float32 (z in metres, 0 = no return) of camera-frame points ``(N, 3)``
+    (see :func:`nearest_returns`)."""
+    pixels, winners = nearest_returns(points_cam, camera, near_m)
+    depth = np.zeros(camera.height * camera.width, dtype=np.float32)
+    depth[pixels] = np.asarray(points_cam, dtype=np.float64)[winners, 2]
+    return depth.reshape(camera.height, camera.width)
 
 
 def remove_occluded(
@@ -42,6 +54,22 @@ def remove_occluded(
     nearest = minimum_filter(np.where(valid, depth, np.inf), size=window_px, mode="nearest")
     keep = valid & (depth <= nearest + np.maximum(absolute_m, relative * nearest))
     return np.where(keep, depth, 0.0).astype(np.float32)
+
+
+def visible_returns(
+    points_cam: np.ndarray, camera: CameraModel, occlusion_window_px: int = 7
+) -> tuple[np.ndarray, np.ndarray]:
+    """The returns among camera-frame points ``(N, 3)`` that the camera sees: the z-buffer's
+    winners (:func:`nearest_returns`) less those :func:`remove_occluded` drops (window 0: none).
+    Returns flat pixel indices ``(M,)`` and the indices ``(M,)`` of their points."""
+    pixels, winners = nearest_returns(points_cam, camera)
+    if occlusion_window_px:
+        depth = np.zeros(camera.height * camera.width, dtype=np.float32)
+        depth[pixels] = np.asarray(points_cam, dtype=np.float64)[winners, 2]
+        kept = remove_occluded(depth.reshape(camera.height, camera.width), occlusion_window_px).ravel()
+        seen = kept[pixels] > 0
+        pixels, winners = pixels[seen], winners[seen]
+    return pixels, winners
 
 
 def lidar_depth_image(

@@ -47,13 +47,14 @@ def prepare_command(
     ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
-    """Keyframes with poses, undistorted images, LiDAR depth images and normal priors (see README)."""
+    """Keyframes with poses, undistorted images, LiDAR points and normal priors (see README)."""
     from dataclasses import asdict
 
     from rich.progress import Progress
 
     from rig.calibration import load_calibration
-    from slam_bridge.scene_builder import PrepareConfig, build_scene
+    from slam_bridge.prepare_config import PrepareConfig
+    from slam_bridge.scene_builder import build_scene
 
     calibration = load_calibration(calib)
     config = PrepareConfig(

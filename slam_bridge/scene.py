@@ -2,20 +2,24 @@
 
 Layout of ``SCENE_DIR``::
 
-    scene.json          camera (distortion-free pinhole), keyframes (name, t_ns, T_world_cam, split)
+    scene.json          format_version, camera (distortion-free pinhole), keyframes (name, t_ns,
+                        T_world_cam, split), options (every PrepareConfig field), source
     images/NAME.png     undistorted colour image (8-bit)
-    depth/NAME.npy      LiDAR depth (H, W) float32 metres along camera z, 0 = no return
+    lidar/NAME.npy      LiDAR points (N, 3) float32 in the camera frame, deskewed, those that
+                        project into the image (the scans between the neighbouring keyframes)
     normals/NAME.npy    normal prior (H, W, 3) float32, camera frame, facing the camera, 0 = none
     mesh.ply            warm-start mesh (world frame), copied from the SLAM folder
     sparse_points.ply   COLMAP points triangulated from the keyframes (optional, ``--sparse-points``)
 
-World = the SLAM map frame; ``T_world_cam`` maps camera points to the world.
+World = the SLAM map frame; ``T_world_cam`` maps camera points to the world. A keyframe's LiDAR
+depth image is made from its points when read: z-buffered, less the returns the camera cannot see
+(:func:`~slam_bridge.depth_image.visible_returns`, window ``options.occlusion_window_px``).
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -27,15 +31,20 @@ from rig.camera import CameraModel
 from rig.data_file import load_data_file
 from rig.errors import InputError
 from rig.transforms import check_rigid
+from slam_bridge.depth_image import visible_returns
+from slam_bridge.prepare_config import PrepareConfig
 
 SCENE_FILE = "scene.json"
 SPARSE_POINTS_FILE = "sparse_points.ply"
+LIDAR_DIR = "lidar"
+#: Version of the folder layout; 1 kept depth images instead of LiDAR points and no options.
+FORMAT_VERSION = 2
 Split = Literal["train", "test"]
 
 
 @dataclass(frozen=True)
 class Keyframe:
-    """One keyframe: its files are ``images/NAME.png``, ``depth/NAME.npy``, ``normals/NAME.npy``."""
+    """One keyframe: its files are ``images/NAME.png``, ``lidar/NAME.npy``, ``normals/NAME.npy``."""
 
     name: str
     t_ns: int
@@ -44,14 +53,40 @@ class Keyframe:
 
 
 @dataclass(frozen=True)
+class KeyframeLidar:
+    """The LiDAR returns a keyframe's camera sees, one per pixel: flat pixel indices ``pixels``
+    ``(M,)`` (``row * W + col``, increasing) and the camera-frame points there ``points`` ``(M, 3)``
+    float32, for an image of ``shape`` ``(H, W)``."""
+
+    pixels: np.ndarray
+    points: np.ndarray
+    shape: tuple[int, int]
+
+    def depth(self) -> np.ndarray:
+        """``(H, W)`` float32 depth (z in metres), 0 where there is no return."""
+        depth = np.zeros(self.shape[0] * self.shape[1], dtype=np.float32)
+        depth[self.pixels] = self.points[:, 2]
+        return depth.reshape(self.shape)
+
+    def point_index(self) -> np.ndarray:
+        """``(H, W)`` int64 index into :attr:`points` of each pixel's return, -1 where there is none."""
+        index = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int64)
+        index[self.pixels] = np.arange(len(self.pixels))
+        return index.reshape(self.shape)
+
+
+@dataclass(frozen=True)
 class Scene:
-    """A prepared scene: a pinhole camera, keyframes and the warm-start mesh path."""
+    """A prepared scene: a pinhole camera, keyframes, the warm-start mesh path and the options that
+    made it. Each keyframe's LiDAR file is read once (on first use) and kept."""
 
     root: Path
     camera: CameraModel
     keyframes: list[Keyframe]
     mesh_path: Path
+    options: PrepareConfig
     sparse_points_path: Path | None = None
+    _lidar: dict[str, KeyframeLidar] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def split(self, which: Split) -> list[Keyframe]:
         return [k for k in self.keyframes if k.split == which]
@@ -71,18 +106,18 @@ class Scene:
             )
         return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
+    def lidar(self, keyframe: Keyframe) -> KeyframeLidar:
+        """The LiDAR returns ``keyframe``'s camera sees (read from ``lidar/NAME.npy`` once)."""
+        if keyframe.name not in self._lidar:
+            points = _load_array(self.root / LIDAR_DIR / f"{keyframe.name}.npy", (None, 3))
+            pixels, seen = visible_returns(points, self.camera, self.options.occlusion_window_px)
+            shape = (self.camera.height, self.camera.width)
+            self._lidar[keyframe.name] = KeyframeLidar(pixels, points[seen], shape)
+        return self._lidar[keyframe.name]
+
     def depth(self, keyframe: Keyframe) -> np.ndarray:
         """``(H, W)`` float32 LiDAR depth in metres, 0 where there is no return."""
-        depth = _load_array(
-            self.root / "depth" / f"{keyframe.name}.npy", (self.camera.height, self.camera.width)
-        )
-        if depth.size and not float(depth.min()) >= 0:  # NaN compares False too
-            raise InputError(
-                "depth holds negative or NaN values (0 marks no return)",
-                path=self.root / "depth" / f"{keyframe.name}.npy",
-                field="depth",
-            )
-        return depth
+        return self.lidar(keyframe).depth()
 
     def normals(self, keyframe: Keyframe) -> np.ndarray:
         """``(H, W, 3)`` float32 camera-frame normal prior, zeros where there is none."""
@@ -106,14 +141,15 @@ class Scene:
         return np.asarray(cloud.vertices, dtype=np.float64), colors.astype(np.uint8)
 
 
-def _load_array(path: Path, shape: tuple[int, ...]) -> np.ndarray:
-    """A numeric ``.npy`` of ``shape`` as float32, finite everywhere."""
+def _load_array(path: Path, shape: tuple[int | None, ...]) -> np.ndarray:
+    """A numeric ``.npy`` of ``shape`` (None: any length) as float32, finite everywhere."""
     try:
         array = np.load(path)
     except (OSError, ValueError, EOFError) as exc:
         raise InputError(f"cannot read array ({exc})", path=path) from None
-    if array.shape != shape:
-        raise InputError(f"expected shape {shape}, got {array.shape}", path=path, field="shape")
+    if array.ndim != len(shape) or any(w not in (None, n) for n, w in zip(array.shape, shape, strict=True)):
+        expected = ", ".join("N" if w is None else str(w) for w in shape)
+        raise InputError(f"expected shape ({expected}), got {array.shape}", path=path, field="shape")
     if not (np.issubdtype(array.dtype, np.floating) or np.issubdtype(array.dtype, np.integer)):
         raise InputError(f"expected numbers, got dtype {array.dtype}", path=path, field="dtype")
     array = array.astype(np.float32, copy=False)
@@ -123,10 +159,17 @@ def _load_array(path: Path, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def write_scene_index(
-    root: Path, camera: CameraModel, keyframes: list[Keyframe], source: dict, sparse_points: str | None = None
+    root: Path,
+    camera: CameraModel,
+    keyframes: list[Keyframe],
+    options: PrepareConfig,
+    source: dict,
+    sparse_points: str | None = None,
 ) -> None:
-    """Write ``scene.json`` (atomically) for the keyframes whose files are already written."""
+    """Write ``scene.json`` (atomically) for the keyframes whose files are already written, with the
+    ``options`` that made them."""
     data = {
+        "format_version": FORMAT_VERSION,
         "camera": camera.to_dict(),
         "mesh": "mesh.ply",
         "sparse_points": sparse_points,
@@ -139,6 +182,7 @@ def write_scene_index(
             }
             for k in keyframes
         ],
+        "options": options.to_json(),
         "source": source,
     }
     write_atomic(root / SCENE_FILE, json.dumps(data, indent=1))
@@ -153,6 +197,13 @@ def load_scene(root: str | Path) -> Scene:
     data = load_data_file(index, "JSON", "scene index")
     if not isinstance(data, dict):
         raise InputError("expected a JSON object with camera and keyframes", path=index)
+    version = data.get("format_version", 1)
+    if version != FORMAT_VERSION:
+        raise InputError(
+            f"scene format version {version}, this lts reads version {FORMAT_VERSION}: re-run lts prepare",
+            path=index,
+            field="format_version",
+        )
     camera = CameraModel.from_dict(data.get("camera"), path=str(index))
     if camera.model != "pinhole" or np.any(camera.dist):
         raise InputError(
@@ -187,7 +238,7 @@ def load_scene(root: str | Path) -> Scene:
         keyframes.append(Keyframe(name, keyframe.t_ns, T, keyframe.split))
     if not keyframes:
         raise InputError("no keyframes", path=index, field="keyframes")
+    options = PrepareConfig.from_json(data.get("options"), index)
     sparse = data.get("sparse_points")
-    return Scene(
-        root, camera, keyframes, root / data.get("mesh", "mesh.ply"), root / sparse if sparse else None
-    )
+    mesh = root / data.get("mesh", "mesh.ply")
+    return Scene(root, camera, keyframes, mesh, options, root / sparse if sparse else None)

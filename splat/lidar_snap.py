@@ -1,4 +1,4 @@
-"""Snapping warm-start mesh vertices onto the LiDAR depth the keyframes recorded.
+"""Snapping warm-start mesh vertices onto the LiDAR returns the keyframes recorded.
 
 A SLAM mesh is often coarser and noisier than the LiDAR returns it came from (voxel maps, TSDF
 smoothing, drift between map updates). Training moves vertices only slowly (their learning rate is
@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from rig.transforms import invert, transform_points
 from slam_bridge.scene import Keyframe, Scene
 
 
@@ -52,10 +53,11 @@ class _Observation:
 
 
 def _observe(vertices: np.ndarray, scene: Scene, keyframe: Keyframe, max_pixels: float) -> _Observation:
-    """The LiDAR depth at each vertex's pixel (or the nearest return within ``max_pixels``)."""
-    depth = scene.depth(keyframe)
+    """The LiDAR return at each vertex's pixel (or the nearest one within ``max_pixels``)."""
+    lidar = scene.lidar(keyframe)
+    depth = lidar.depth()
     T = keyframe.T_world_cam
-    cam = (vertices - T[:3, 3]) @ T[:3, :3]
+    cam = transform_points(invert(T), vertices)
     front = np.flatnonzero(cam[:, 2] > 0.1)
     pixels = scene.camera.project(cam[front])
     inside = scene.camera.in_image(pixels)
@@ -64,19 +66,18 @@ def _observe(vertices: np.ndarray, scene: Scene, keyframe: Keyframe, max_pixels:
     u, v = np.clip(u, 0, depth.shape[1] - 1), np.clip(v, 0, depth.shape[0] - 1)
     gap, (iy, ix) = ndimage.distance_transform_edt(depth <= 0, return_indices=True)
     ly, lx = iy[v, u], ix[v, u]
-    lidar = depth[ly, lx].astype(np.float64)
-    ok = (gap[v, u] <= max_pixels) & (lidar > 0)
-    front, z, lidar = front[ok], cam[front[ok], 2], lidar[ok]
-    returns = scene.camera.unproject(np.column_stack([lx[ok], ly[ok]]).astype(np.float64), lidar)
-    normal = scene.normals(keyframe)[ly[ok], lx[ok]].astype(np.float64)
+    index = lidar.point_index()[ly, lx]
+    ok = (gap[v, u] <= max_pixels) & (index >= 0)
+    front, ly, lx = front[ok], ly[ok], lx[ok]
+    returns = lidar.points[index[ok]].astype(np.float64)
+    normal = scene.normals(keyframe)[ly, lx].astype(np.float64)
     has_normal = np.linalg.norm(normal, axis=1) > 0.5
     # Along the normal prior onto the plane through the return: the vertex keeps its place along
     # the surface (the return may be a pixel or two away, far along a floor seen at a grazing
     # angle). Without a prior, onto the return itself.
     along = np.einsum("ij,ij->i", cam[front] - returns, normal)
     target = np.where(has_normal[:, None], cam[front] - along[:, None] * normal, returns)
-    point = target @ T[:3, :3].T + T[:3, 3]
-    return _Observation(front, point, lidar - z)
+    return _Observation(front, transform_points(T, target), returns[:, 2] - cam[front, 2])
 
 
 def snap_to_lidar(

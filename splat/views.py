@@ -8,6 +8,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from rig.transforms import invert
 from slam_bridge.scene import Keyframe, Scene
 
 
@@ -41,7 +42,7 @@ def load_views(
         views.append(
             View(
                 k.name,
-                torch.as_tensor(np.linalg.inv(k.T_world_cam), dtype=dtype, device=device),
+                torch.as_tensor(invert(k.T_world_cam), dtype=dtype, device=device),
                 torch.as_tensor(scene.image(k) / 255.0, dtype=dtype, device=device),
                 torch.as_tensor(depth, dtype=dtype, device=device) if (depth > 0).any() else None,
                 torch.as_tensor(normal, dtype=dtype, device=device) if np.abs(normal).sum() > 0 else None,

@@ -5,7 +5,13 @@ import numpy as np
 
 from rig import CameraModel
 from rig.kitti import kitti_camera, read_kitti_calib
-from slam_bridge.depth_image import lidar_depth_image, remove_occluded, zbuffer_depth
+from slam_bridge.depth_image import (
+    lidar_depth_image,
+    nearest_returns,
+    remove_occluded,
+    visible_returns,
+    zbuffer_depth,
+)
 
 
 def test_kitti_depth_image_matches_an_independent_projection(real_data: Path) -> None:
@@ -49,3 +55,32 @@ def test_see_through_points_are_removed() -> None:
     assert not ((cleaned > 4) & behind_post & (np.abs(np.arange(64) - 31.5) < 3)[None, :]).any()
     far_from_post = (np.abs(np.arange(64) - 31.5) > 12)[None, :] & (depth > 0)
     assert (cleaned[far_from_post] == depth[far_from_post]).all()  # the open wall is untouched
+
+
+def test_the_nearest_return_of_each_pixel_wins() -> None:
+    camera = CameraModel("pinhole", 64, 48, [[50, 0, 31.5], [0, 50, 23.5], [0, 0, 1]], [])
+    rng = np.random.default_rng(1)
+    points = np.c_[rng.uniform(-4, 4, (5000, 2)), rng.uniform(-1, 6, 5000)]
+    pixels, winners = nearest_returns(points, camera)
+    # Independent: np.minimum.at over the rounded projections of the points in front.
+    front = points[points[:, 2] > 0.05]
+    uv = front[:, :2] / front[:, 2:] * 50 + [31.5, 23.5]
+    ok = (uv[:, 0] >= -0.5) & (uv[:, 0] < 63.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] < 47.5)
+    expected = np.full(64 * 48, np.inf)
+    np.minimum.at(
+        expected, np.round(uv[ok, 1]).astype(int) * 64 + np.round(uv[ok, 0]).astype(int), front[ok, 2]
+    )
+    np.testing.assert_array_equal(pixels, np.flatnonzero(np.isfinite(expected)))
+    np.testing.assert_array_equal(points[winners, 2], expected[pixels])
+
+
+def test_visible_returns_are_those_the_occlusion_test_keeps() -> None:
+    camera = CameraModel("pinhole", 64, 48, [[50, 0, 31.5], [0, 50, 23.5], [0, 0, 1]], [])
+    rng = np.random.default_rng(0)
+    wall = np.c_[rng.uniform(-3, 3, 3000), rng.uniform(-2.4, 2.4, 3000), np.full(3000, 5.0)]
+    post = np.c_[rng.uniform(-0.1, 0.1, 150), rng.uniform(-0.5, 0.5, 150), np.full(150, 1.0)]
+    points = np.vstack([wall, post])
+    pixels, seen = visible_returns(points, camera, 7)
+    kept = remove_occluded(zbuffer_depth(points, camera), 7).ravel()
+    np.testing.assert_array_equal(pixels, np.flatnonzero(kept))
+    np.testing.assert_array_equal(points[seen, 2], kept[pixels])

@@ -6,7 +6,14 @@ import pytest
 import trimesh
 
 from rig import Calibration, CameraModel, InputError, load_calibration
+from rig.deskew import deskewed_points
+from rig.session import SessionReader
 from rig.trajectory_io import read_tum, write_tum
+from rig.transforms import invert, transform_points
+from slam_bridge.depth_image import remove_occluded, zbuffer_depth
+from slam_bridge.keyframe_lidar import keyframe_windows
+from slam_bridge.keyframe_selection import frame_stamps, frames_at
+from slam_bridge.prepare_config import PrepareConfig
 from slam_bridge.scene import load_scene
 from slam_bridge.scene_builder import build_scene
 
@@ -59,6 +66,69 @@ def test_lidar_depth_agrees_with_ground_truth_depth(gt_scene: Path, quick_room: 
     errors = np.concatenate(errors)
     assert np.median(errors) < 1.5 * sigma
     assert np.mean(errors > 0.10) < 0.01  # occlusion leaks handled
+
+
+def test_depth_from_the_stored_points_equals_the_depth_image_lts_prepare_stored_before(
+    gt_scene: Path, quick_room: Path, gt_slam_dir: Path
+) -> None:
+    """Format 1 z-buffered each keyframe's world points (float64) into a depth image; the depth
+    made from the stored float32 camera-frame points is the same, pixel for pixel."""
+    scene = load_scene(gt_scene)
+    calibration = load_calibration(quick_room / "ground_truth" / "calib.yaml")
+    trajectory = read_tum(gt_slam_dir / "trajectory.tum")
+    scans = list(SessionReader(quick_room / "session.mcap").scans("/lidar/points"))
+    offset_ns = round(calibration.time_offset_s * 1e9)
+    t = [k.t_ns for k in scene.keyframes]
+    margin = int(scene.options.keyframe_interval_s * 1e9)
+    for n, keyframe in enumerate(scene.keyframes):
+        lo = t[n - 1] if n > 0 else t[n] - margin
+        hi = t[n + 1] if n + 1 < len(t) else t[n] + margin
+        near = [s for s in scans if lo <= s.t_host + offset_ns <= hi]
+        world = np.concatenate(
+            [deskewed_points(s.points, s.point_times_ns(host=True), trajectory) for s in near]
+        )
+        T_cam_world = invert(keyframe.T_world_cam)
+        before = remove_occluded(zbuffer_depth(transform_points(T_cam_world, world), scene.camera), 7)
+        np.testing.assert_array_equal(scene.depth(keyframe), before)
+
+
+def test_a_keyframes_lidar_file_is_read_once(gt_scene: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    scene = load_scene(gt_scene)
+    reads = []
+    load = np.load
+    monkeypatch.setattr(
+        np, "load", lambda path, *a, **k: reads.append(Path(path).parent.name) or load(path, *a, **k)
+    )
+    keyframe = scene.keyframes[0]
+    first = scene.depth(keyframe)
+    np.testing.assert_array_equal(scene.depth(keyframe), first)
+    assert len(scene.lidar(keyframe).points) == (first > 0).sum()
+    assert reads == ["lidar"]
+
+
+def test_scene_records_its_format_and_options(gt_scene: Path) -> None:
+    import json
+
+    data = json.loads((gt_scene / "scene.json").read_text())
+    assert data["format_version"] == 2
+    assert load_scene(gt_scene).options == PrepareConfig()
+    assert not (gt_scene / "depth").exists()
+
+
+def test_keyframe_windows_reach_the_neighbouring_keyframes() -> None:
+    lo, hi = keyframe_windows(np.array([10, 20, 35]) * 10**9, 0.5)
+    np.testing.assert_array_equal(lo, np.array([9.5, 10, 20]) * 1e9)
+    np.testing.assert_array_equal(hi, np.array([20, 35, 35.5]) * 1e9)
+
+
+def test_frame_stamps_and_chosen_frames_without_decoding_the_rest(quick_room: Path) -> None:
+    reader = SessionReader(quick_room / "session.mcap")
+    topic = "/camera/image/compressed"
+    frames = list(reader.frames(topic))
+    np.testing.assert_array_equal(frame_stamps(reader, topic), [f.t_host for f in frames])
+    chosen = list(frames_at(reader, topic, np.array([1, 4])))
+    assert [f.t_host for f in chosen] == [frames[1].t_host, frames[4].t_host]
+    np.testing.assert_array_equal(chosen[1].image, frames[4].image)
 
 
 def test_normal_prior_faces_the_camera(gt_scene: Path) -> None:
@@ -140,7 +210,7 @@ def test_precomputed_normal_maps_replace_the_mesh_prior(
                 str(folder / f"{index:06d}.png"),
                 cv2.cvtColor(((up + 1) * 127.5).astype(np.uint8), cv2.COLOR_RGB2BGR),
             )
-    from slam_bridge.scene_builder import PrepareConfig
+    from slam_bridge.prepare_config import PrepareConfig
 
     build_scene(
         quick_room / "session.mcap",
@@ -170,7 +240,7 @@ def test_precomputed_normal_maps_replace_the_mesh_prior(
 
 
 def test_sparse_points_lie_on_the_true_surface(quick_room: Path, gt_slam_dir: Path, tmp_path: Path) -> None:
-    from slam_bridge.scene_builder import PrepareConfig
+    from slam_bridge.prepare_config import PrepareConfig
 
     calibration = load_calibration(quick_room / "ground_truth" / "calib.yaml")
     build_scene(

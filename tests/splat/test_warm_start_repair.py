@@ -1,4 +1,4 @@
-"""The two repairs of a warm-start mesh: snapping its vertices onto the LiDAR depth, and
+"""The two repairs of a warm-start mesh: snapping its vertices onto the LiDAR returns, and
 completing the floor no camera sees where the room encloses it."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 import trimesh
 from training_scene import WALL_Y, corner_mesh, write_training_scene
 
-from slam_bridge.scene import load_scene
+from slam_bridge.scene import KeyframeLidar, load_scene
 from splat.floor_cells import PlaneGrid, enclosed_hidden_cells
 from splat.lidar_snap import snap_to_lidar
 
@@ -64,7 +64,8 @@ def test_snapping_a_clean_mesh_barely_moves_it(scene):
 
 
 def test_snapping_without_lidar_returns_leaves_the_mesh_alone(scene, monkeypatch):
-    monkeypatch.setattr(type(scene), "depth", lambda self, keyframe: np.zeros((48, 64), np.float32))
+    empty = KeyframeLidar(np.zeros(0, np.int64), np.zeros((0, 3), np.float32), (48, 64))
+    monkeypatch.setattr(type(scene), "lidar", lambda self, keyframe: empty)
     vertices = np.asarray(corner_mesh(4).vertices, dtype=np.float64)
     snap = snap_to_lidar(vertices, scene, scene.split("train"))
     assert snap.n_snapped == 0

@@ -1,6 +1,6 @@
 """A tiny scene folder for training tests: a textured floor and back wall (a corner of a room),
-rendered by the rasteriser itself from six cameras, with exact depth and normal images and a
-coarse warm-start mesh of the same two planes."""
+rendered by the rasteriser itself from six cameras, with exact LiDAR points (on 30 % of the
+pixels) and normal images and a coarse warm-start mesh of the same two planes."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ import torch
 import trimesh
 
 from rig.transforms import make_transform
-from slam_bridge.scene import Keyframe, write_scene_index
+from slam_bridge.prepare_config import PrepareConfig
+from slam_bridge.scene import LIDAR_DIR, Keyframe, write_scene_index
 from splat.raster import render
 from splat.raster.scenes import pinhole
 
@@ -73,7 +74,7 @@ def write_training_scene(root: Path, n_views: int = 6, seed: int = 0) -> Path:
         2 * np.pi * (centre @ np.array([[1, 0.3, 0.5], [0.2, 1, -0.4], [0.6, -0.5, 1]])) / 1.5
     )
     face_colors = torch.as_tensor(np.clip(wave + rng.normal(0, 0.03, (n, 3)), 0, 1))
-    for name in ("images", "depth", "normals"):
+    for name in ("images", LIDAR_DIR, "normals"):
         (root / name).mkdir(parents=True, exist_ok=True)
     keyframes = []
     for i, pose in enumerate(camera_poses(n_views)):
@@ -87,8 +88,9 @@ def write_training_scene(root: Path, n_views: int = 6, seed: int = 0) -> Path:
         cv2.imwrite(str(root / "images" / f"{name}.png"), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
         alpha = out.alpha.numpy()
         depth = np.where(alpha > 0.5, out.depth.numpy() / np.maximum(alpha, 1e-6), 0.0)
-        sparse = rng.random(depth.shape) < 0.3  # LiDAR returns on 30 % of the pixels
-        np.save(root / "depth" / f"{name}.npy", np.where(sparse, depth, 0.0).astype(np.float32))
+        v, u = np.nonzero((rng.random(depth.shape) < 0.3) & (depth > 0))  # returns on 30 % of the pixels
+        points = CAMERA.unproject(np.column_stack([u, v]).astype(np.float64), depth[v, u])
+        np.save(root / LIDAR_DIR / f"{name}.npy", points.astype(np.float32))
         normal = out.normal.numpy()
         normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-9)
         np.save(
@@ -97,5 +99,6 @@ def write_training_scene(root: Path, n_views: int = 6, seed: int = 0) -> Path:
         split = "test" if i == n_views - 1 else "train"
         keyframes.append(Keyframe(name, 1_000_000_000 * (i + 1), pose, split))
     corner_mesh(8).export(root / "mesh.ply")
-    write_scene_index(root, CAMERA, keyframes, {"kind": "test corner"})
+    # Exact depth has no see-through returns to remove.
+    write_scene_index(root, CAMERA, keyframes, PrepareConfig(occlusion_window_px=0), {"kind": "test corner"})
     return root

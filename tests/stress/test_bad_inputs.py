@@ -24,6 +24,7 @@ from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from rig.session import SessionReader, recover, session_info
 from rig.trajectory_io import read_trajectory
+from slam_bridge.prepare_config import PrepareConfig
 from slam_bridge.scene import Keyframe, load_scene, write_scene_index
 
 
@@ -246,11 +247,11 @@ SCENE_CAMERA = CameraModel("pinhole", 32, 24, [[30, 0, 16], [0, 30, 12], [0, 0, 
 
 def _scene(root: Path) -> Path:
     (root / "images").mkdir(parents=True)
-    (root / "depth").mkdir()
+    (root / "lidar").mkdir()
     (root / "normals").mkdir()
-    write_scene_index(root, SCENE_CAMERA, [Keyframe("a", 1, np.eye(4), "train")], {})
+    write_scene_index(root, SCENE_CAMERA, [Keyframe("a", 1, np.eye(4), "train")], PrepareConfig(), {})
     cv2.imwrite(str(root / "images" / "a.png"), np.zeros((24, 32, 3), np.uint8))
-    np.save(root / "depth" / "a.npy", np.ones((24, 32), np.float32))
+    np.save(root / "lidar" / "a.npy", np.ones((5, 3), np.float32))
     np.save(root / "normals" / "a.npy", np.zeros((24, 32, 3), np.float32))
     return root
 
@@ -267,15 +268,15 @@ def test_scene_image_of_the_wrong_size(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("array", "needle", "field"),
     [
-        (np.full((24, 32), np.inf, np.float32), "NaN or Inf", "values"),
-        (np.full((24, 32), -1.0, np.float32), "negative", "depth"),
-        (np.full((24, 32), "x"), "dtype", "dtype"),  # Bug: numpy's ValueError from astype
-        (np.ones((24, 31), np.float32), "shape", "shape"),
+        (np.full((5, 3), np.inf, np.float32), "NaN or Inf", "values"),
+        (np.full((5, 3), "x"), "dtype", "dtype"),  # Bug: numpy's ValueError from astype
+        (np.ones((5, 2), np.float32), "shape", "shape"),
+        (np.ones((24, 32), np.float32), "shape", "shape"),  # a depth image of format version 1
     ],
 )
-def test_scene_depth_arrays(tmp_path: Path, array: np.ndarray, needle: str, field: str) -> None:
+def test_scene_lidar_arrays(tmp_path: Path, array: np.ndarray, needle: str, field: str) -> None:
     scene = load_scene(_scene(tmp_path))
-    path = tmp_path / "depth" / "a.npy"
+    path = tmp_path / "lidar" / "a.npy"
     np.save(path, array)
     _raises(lambda: scene.depth(scene.keyframes[0]), path, needle, field=field)
 
@@ -292,6 +293,10 @@ def test_scene_depth_arrays(tmp_path: Path, array: np.ndarray, needle: str, fiel
         (lambda d: _entry(d, name="../../outside"), "plain file name", "keyframes"),
         (lambda d: _entry(d, t_ns=1.5), "whole nanoseconds", "keyframes"),
         (lambda d: {**d, "camera": {**d["camera"], "dist": [0.1, 0, 0, 0, 0]}}, "distortion", "camera"),
+        # A scene folder of an older lts prepare (depth images, no options) or of a newer one.
+        (lambda d: _without(d, "format_version"), "re-run lts prepare", "format_version"),
+        (lambda d: {**d, "format_version": 3}, "re-run lts prepare", "format_version"),
+        (lambda d: {**d, "options": {"keyframe_interval_s": 0.5}}, "expected the fields", "options"),
     ],
 )
 def test_bad_scene_index(tmp_path: Path, edit, needle: str, field: str | None) -> None:
@@ -299,6 +304,10 @@ def test_bad_scene_index(tmp_path: Path, edit, needle: str, field: str | None) -
     index = root / "scene.json"
     index.write_text(json.dumps(edit(json.loads(index.read_text()))))
     _raises(lambda: load_scene(root), index, needle, field=field)
+
+
+def _without(data: dict, key: str) -> dict:
+    return {k: v for k, v in data.items() if k != key}
 
 
 def _entry(data: dict, **changes) -> dict:

@@ -1,0 +1,92 @@
+"""Choosing keyframes among a session's camera frames, and their camera poses on the LiDAR trajectory."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from rig.calibration import Calibration
+from rig.errors import InputError
+from rig.messages import Frame
+from rig.session import SessionReader
+from rig.session.ros_messages import msg_to_frame
+from rig.trajectory import Trajectory
+from rig.transforms import invert
+from slam_bridge.scene import Keyframe
+
+
+def lidar_clock(t_cam_ns: np.ndarray, calibration: Calibration) -> np.ndarray:
+    """Camera-clock stamps ``(N,)`` int64 expressed on the LiDAR clock (minus ``time_offset_s``)."""
+    return np.asarray(t_cam_ns, dtype=np.int64) - round(calibration.time_offset_s * 1e9)
+
+
+def frame_stamps(reader: SessionReader, topic: str) -> np.ndarray:
+    """Host stamps ``(N,)`` int64 of the frames on ``topic``, in file order, without decoding images."""
+    stamps = np.array([m.t_host for m in reader.messages([topic])], dtype=np.int64)
+    if stamps.size == 0:
+        raise InputError(f"no images on {topic}", path=reader.path)
+    return stamps
+
+
+def frames_at(reader: SessionReader, topic: str, indices: np.ndarray) -> Iterator[Frame]:
+    """The frames at ``indices`` ``(K,)`` (increasing positions on ``topic``, as in
+    :func:`frame_stamps`), decoding only those."""
+    wanted = set(np.asarray(indices).tolist())
+    for index, m in enumerate(reader.messages([topic])):
+        if index in wanted:
+            try:
+                yield msg_to_frame(m.msg, m.msgtype, m.t_host, m.t_device, topic)
+            except InputError as exc:
+                message = f"{exc.reason} (message at log time {m.t_host} ns)"
+                raise InputError(message, path=reader.path, field=exc.field or topic) from None
+
+
+def camera_poses(trajectory: Trajectory, calibration: Calibration, t_cam_ns: np.ndarray) -> np.ndarray:
+    """``T_world_cam`` ``(N, 4, 4)`` at camera stamps ``(N,)``: the LiDAR trajectory at the LiDAR
+    time of each frame composed with ``T_lidar_cam``."""
+    return trajectory.interpolate(lidar_clock(t_cam_ns, calibration)) @ invert(calibration.T_cam_lidar)
+
+
+def select_keyframes(
+    frame_t_ns: np.ndarray,
+    trajectory: Trajectory,
+    calibration: Calibration,
+    interval_s: float,
+    min_motion: tuple[float, float] | None = None,
+) -> np.ndarray:
+    """Indices of camera frames to keep, only where the trajectory covers them: one per
+    ``interval_s``, or — with ``min_motion = (metres, degrees)`` — the next frame whose camera has
+    moved or turned at least that much since the last keyframe."""
+    covered = np.flatnonzero(trajectory.covers(lidar_clock(frame_t_ns, calibration)))
+    if covered.size == 0:
+        raise InputError(
+            "the trajectory covers none of the camera frames (check time_offset_s and the SLAM folder)",
+            field="trajectory",
+        )
+    poses = camera_poses(trajectory, calibration, frame_t_ns[covered]) if min_motion else None
+    chosen = [0]
+    for j in range(1, len(covered)):
+        if poses is None:
+            keep = (frame_t_ns[covered[j]] - frame_t_ns[covered[chosen[-1]]]) * 1e-9 >= interval_s - 1e-6
+        else:
+            relative = invert(poses[chosen[-1]]) @ poses[j]
+            angle = np.degrees(np.arccos(np.clip((np.trace(relative[:3, :3]) - 1) / 2, -1.0, 1.0)))
+            keep = np.linalg.norm(relative[:3, 3]) >= min_motion[0] or angle >= min_motion[1]
+        if keep:
+            chosen.append(j)
+    return covered[np.asarray(chosen)]
+
+
+def make_keyframes(t_ns: np.ndarray, poses: np.ndarray, test_every: int) -> list[Keyframe]:
+    """Keyframes ``kf_0000, kf_0001, …`` at stamps ``(K,)`` with poses ``T_world_cam`` ``(K, 4, 4)``;
+    every ``test_every``-th one (0: none) is held out for testing."""
+    return [
+        Keyframe(
+            f"kf_{n:04d}",
+            int(t),
+            T_world_cam,
+            "test" if test_every and n % test_every == test_every - 1 else "train",
+        )
+        for n, (t, T_world_cam) in enumerate(zip(t_ns, poses, strict=True))
+    ]

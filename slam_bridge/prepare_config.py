@@ -1,0 +1,63 @@
+"""The settings of ``lts prepare``, as given and as recorded in a scene's ``scene.json``."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from rig.errors import InputError
+
+
+@dataclass(frozen=True)
+class PrepareConfig:
+    """Settings of the scene builder.
+
+    Attributes:
+        keyframe_interval_s: one keyframe per this many seconds of camera frames (paper: ~0.5 s).
+        keyframe_min_motion: ``(metres, degrees)``: choose keyframes by motion instead of time.
+        test_every: every n-th keyframe is held out for testing.
+        occlusion_window_px: window of the see-through test on LiDAR depth (0 disables it).
+        image_topic, points_topic: choose topics when a session has several.
+        normals_dir: a folder of precomputed normal maps (e.g. from a monocular normal network) to
+            use instead of the SLAM mesh's normals: see :func:`~slam_bridge.keyframe_normals.read_normal_map`.
+        sparse_points: triangulate COLMAP sparse points from the keyframes (for the TS+ baseline).
+        refine_poses: refine the keyframe poses against the SLAM mesh, guarded by held-out
+            matches (:mod:`slam_bridge.pose_refinement`); LiDAR points, normals and sparse points
+            then use the refined poses.
+    """
+
+    keyframe_interval_s: float = 0.5
+    keyframe_min_motion: tuple[float, float] | None = None
+    test_every: int = 8
+    occlusion_window_px: int = 7
+    image_topic: str | None = None
+    points_topic: str | None = None
+    normals_dir: Path | None = None
+    sparse_points: bool = False
+    refine_poses: bool = False
+
+    def to_json(self) -> dict[str, Any]:
+        """Every field as a JSON value (paths as strings, the motion pair as a list)."""
+        data = asdict(self)
+        data["normals_dir"] = None if self.normals_dir is None else str(self.normals_dir)
+        if self.keyframe_min_motion is not None:
+            data["keyframe_min_motion"] = list(self.keyframe_min_motion)
+        return data
+
+    @classmethod
+    def from_json(cls, data: Any, path: Path) -> PrepareConfig:
+        """The config :meth:`to_json` wrote; an error naming ``path`` when a field is missing or unknown."""
+        names = {f.name for f in fields(cls)}
+        if not isinstance(data, dict) or set(data) != names:
+            got = sorted(data) if isinstance(data, dict) else type(data).__name__
+            raise InputError(f"expected the fields {sorted(names)}, got {got}", path=path, field="options")
+        motion = data["keyframe_min_motion"]
+        normals = data["normals_dir"]
+        return cls(
+            **{
+                **data,
+                "keyframe_min_motion": None if motion is None else tuple(motion),
+                "normals_dir": None if normals is None else Path(normals),
+            }
+        )
