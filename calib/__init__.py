@@ -10,15 +10,13 @@ shared data types. Public API:
 - time offset: :func:`estimate_time_offset` → :class:`TimeOffsetResult` (from angular velocities);
 - sessions: :func:`calibrate_session` (time offset, then the extrinsic from a rough guess: from a
   chessboard, :class:`BoardGeometry` / :func:`board_geometry`, or targetless);
-- quality pictures: :func:`write_comparison`;
-- point clouds: :func:`read_point_cloud` (PCD ascii/binary/binary_compressed, KITTI ``.bin``).
+- quality pictures: :func:`write_comparison`.
 """
 
 from calib.board_session import BoardGeometry, board_geometry
 from calib.boards import BoardView, CharucoTarget, ChessboardTarget, detect_views
 from calib.intrinsics import IntrinsicsResult, calibrate_intrinsics
 from calib.overlay import write_comparison
-from calib.pointcloud_io import PointCloud, read_point_cloud
 from calib.session_calib import calibrate_session
 from calib.target_based import BoardObservation, board_observations, calibrate_with_board
 from calib.targetless import ExtrinsicPair, ExtrinsicResult, pose_difference, refine_extrinsic
@@ -33,7 +31,6 @@ __all__ = [
     "ExtrinsicPair",
     "ExtrinsicResult",
     "IntrinsicsResult",
-    "PointCloud",
     "TimeOffsetResult",
     "board_geometry",
     "board_observations",
@@ -43,7 +40,6 @@ __all__ = [
     "detect_views",
     "estimate_time_offset",
     "pose_difference",
-    "read_point_cloud",
     "refine_extrinsic",
     "write_comparison",
 ]

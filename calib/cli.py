@@ -132,11 +132,11 @@ def extrinsic(
 
     from calib.board_session import board_geometry
     from calib.overlay import write_comparison
-    from calib.pointcloud_io import read_point_cloud
     from calib.target_based import board_observations, calibrate_with_board
     from calib.targetless import ExtrinsicPair, refine_extrinsic
     from rig.calibration import load_calibration, save_calibration
     from rig.errors import InputError
+    from rig.pointcloud_io import read_point_cloud
 
     if len(image) != len(points):
         raise InputError(

@@ -10,10 +10,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib.motion import imu_angular_velocity
-from calib.pointcloud_io import PointCloud
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.messages import Frame, ImuSample, Scan
+from rig.pointcloud_io import PointCloud
 from rig.session import DEFAULT_TOPICS, SessionReader, SessionTopics, find_topics
 
 #: LiDAR time window (s) around a frame: a whole sweep when the gyro can de-skew it, a short

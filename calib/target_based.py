@@ -30,11 +30,11 @@ from scipy.optimize import OptimizeResult, least_squares
 from scipy.spatial.transform import Rotation
 
 from calib.boards import BoardView, ChessboardTarget, detect_chessboard, to_gray
-from calib.pointcloud_io import PointCloud
 from calib.targetless import ExtrinsicPair, ExtrinsicResult
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.plane_fit import least_squares_plane, ransac_plane, refine_plane
+from rig.pointcloud_io import PointCloud
 from rig.transforms import invert, make_transform, transform_points
 
 #: RANSAC inlier distance (m) for the LiDAR board plane, and the fewest inliers accepted.

@@ -32,9 +32,9 @@ from scipy.spatial.transform import Rotation
 
 from calib.boards import to_gray
 from calib.features import edge_field, lidar_edges
-from calib.pointcloud_io import PointCloud
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.pointcloud_io import PointCloud
 from rig.transforms import make_transform, transform_points
 
 #: Images wider than this are downscaled to it; blur and edge widths below are in pixels at

@@ -8,6 +8,7 @@ from rig.calibration import Calibration, load_calibration, save_calibration
 from rig.camera import CameraModel
 from rig.errors import InputError, OutOfRangeError
 from rig.messages import Frame, ImuSample, Scan
+from rig.pointcloud_io import PointCloud, read_point_cloud
 from rig.trajectory import Trajectory
 from rig.trajectory_io import (
     FORMATS as TRAJECTORY_FORMATS,
@@ -42,6 +43,7 @@ __all__ = [
     "ImuSample",
     "InputError",
     "OutOfRangeError",
+    "PointCloud",
     "Scan",
     "Trajectory",
     "check_rigid",
@@ -53,6 +55,7 @@ __all__ = [
     "read_euroc",
     "read_kitti",
     "read_matrix_lines",
+    "read_point_cloud",
     "read_trajectory",
     "read_tum",
     "save_calibration",

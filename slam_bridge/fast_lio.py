@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from calib.pointcloud_io import read_point_cloud
 from rig.errors import InputError
+from rig.pointcloud_io import read_point_cloud
 from rig.trajectory import Trajectory
 from rig.trajectory_io import read_trajectory
 from slam_bridge.mapper_bag import find_bag, read_odometry

@@ -7,10 +7,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from calib.boards import BoardView, ChessboardTarget, detect_chessboard
-from calib.pointcloud_io import PointCloud
 from calib.target_based import BoardObservation, board_pose, calibrate_with_board
 from calib.targetless import pose_difference
 from rig.errors import InputError
+from rig.pointcloud_io import PointCloud
 from rig.transforms import invert, make_transform
 
 from .synthetic import board_poses, board_scan, render_chessboard, sim_camera

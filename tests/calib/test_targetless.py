@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.pointcloud_io import PointCloud, read_point_cloud
 from calib.targetless import ExtrinsicPair, pose_difference, refine_extrinsic
 from rig.camera import CameraModel
 from rig.kitti import kitti_camera, read_kitti_calib
+from rig.pointcloud_io import PointCloud, read_point_cloud
 
 PAIRS = {"manual": ("0.png", "0.pcd"), "auto": ("calib.png", "calib.pcd")}
 

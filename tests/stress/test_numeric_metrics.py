@@ -16,7 +16,6 @@ from hypothesis.extra import numpy as hnp
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from calib.pointcloud_io import PointCloud
 from calib.target_based import BoardObservation, calibrate_with_board
 from calib.time_offset import _refine, estimate_time_offset
 from eval.geometry import compare_meshes, compare_point_sets, sample_surface
@@ -30,6 +29,7 @@ from eval.stability import (
 )
 from eval.trajectory_metrics import pose_alignment, umeyama_alignment
 from rig.errors import InputError
+from rig.pointcloud_io import PointCloud
 from rig.transforms import invert, make_transform, transform_points
 
 # Photometric ----------------------------------------------------------------------------------

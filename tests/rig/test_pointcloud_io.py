@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.pointcloud_io import read_kitti_bin, read_pcd, read_point_cloud
 from rig.errors import InputError
+from rig.pointcloud_io import read_kitti_bin, read_pcd, read_point_cloud
 
 
 def _cloud(n: int = 500) -> tuple[np.ndarray, np.ndarray]:
