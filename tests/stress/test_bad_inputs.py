@@ -16,12 +16,12 @@ from console_script import run_console_script as run_cli
 from hypothesis import given
 from hypothesis import strategies as st
 
-from calib.pointcloud_io import read_point_cloud
 from eval.stability import MUTATIONS, READER_KINDS, check_reader, time_limit
 from rig.calibration import load_calibration
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
+from rig.pointcloud_io import read_point_cloud
 from rig.session import SessionReader, recover, session_info
 from rig.trajectory_io import read_trajectory
 from slam_bridge.prepare_config import PrepareConfig
