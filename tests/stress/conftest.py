@@ -47,15 +47,15 @@ def assert_one_line_error(code: int, err: str, *needles: str) -> None:
 
 @pytest.fixture(scope="session")
 def samples(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Path]:
-    """``samples(kind)``: a small valid file of ``kind`` (see eval.stability.READER_KINDS)."""
-    from eval.stability import _suffix, write_sample
+    """``samples(kind)``: a small valid file of ``kind`` (see lts.stress.samples.READER_KINDS)."""
+    from lts.stress.samples import sample_suffix, write_sample
 
     root = tmp_path_factory.mktemp("samples")
     made: dict[str, Path] = {}
 
     def get(kind: str) -> Path:
         if kind not in made:
-            made[kind] = write_sample(kind, root / f"{kind}{_suffix(kind)}")
+            made[kind] = write_sample(kind, root / f"{kind}{sample_suffix(kind)}")
         return made[kind]
 
     return get

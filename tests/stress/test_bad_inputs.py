@@ -16,7 +16,9 @@ from console_script import run_console_script as run_cli
 from hypothesis import given
 from hypothesis import strategies as st
 
-from eval.stability import MUTATIONS, READER_KINDS, check_reader, time_limit
+from lts.stress.guards import time_limit
+from lts.stress.readers import MUTATIONS, check_reader
+from lts.stress.samples import READER_KINDS
 from rig.calibration import load_calibration
 from rig.camera import CameraModel
 from rig.errors import InputError
@@ -387,7 +389,7 @@ def rig_main():
 
 @pytest.fixture
 def lts_main():
-    from eval.cli import main
+    from lts.cli import main
 
     return main
 

@@ -20,14 +20,11 @@ from calib.target_based import BoardObservation, calibrate_with_board
 from calib.time_offset import _refine, estimate_time_offset
 from eval.geometry import compare_meshes, compare_point_sets, sample_surface
 from eval.photometric import psnr, ssim
-from eval.stability import (
-    TimeOffsetCase,
-    check_alignment,
-    check_photometric,
-    check_point_sets,
-    check_time_offset,
-)
 from eval.trajectory_metrics import pose_alignment, umeyama_alignment
+from lts.stress.geometry import check_point_sets
+from lts.stress.photometric import check_photometric
+from lts.stress.time_offset import TimeOffsetCase, check_time_offset
+from lts.stress.trajectory import check_alignment
 from rig.errors import InputError
 from rig.pointcloud_io import PointCloud
 from rig.transforms import invert, make_transform, transform_points

@@ -10,16 +10,16 @@ from conftest import examples
 from hypothesis import given
 from hypothesis import strategies as st
 
-from eval.stability import (
+from lts.stress.raster import (
     OPACITY_ENDS,
     SCALES,
     SIGMA_ENDS,
     TRIANGLE_KINDS,
     RasterCase,
-    _float64_regular,
     check_raster,
     check_raster_rejects_nonfinite,
     check_raster_scale_invariance,
+    float64_regular,
 )
 from rig.camera import CameraModel
 from splat.raster import render
@@ -67,7 +67,7 @@ def test_reference_backend_too(case: RasterCase) -> None:
 @examples(80)
 @given(raster_cases())
 def test_a_tiny_or_huge_scene_renders_like_a_one_metre_one(case: RasterCase) -> None:
-    assert check_raster_scale_invariance(_float64_regular(case)) == []
+    assert check_raster_scale_invariance(float64_regular(case)) == []
 
 
 @examples(20)
@@ -160,5 +160,5 @@ def test_float32_normal_of_a_tiny_triangle_is_a_unit_vector(backend: str) -> Non
     seen = out.alpha.detach() > 0
     lengths = out.normal.detach()[seen].norm(dim=-1) / out.alpha.detach()[seen]
     assert torch.allclose(lengths, torch.ones_like(lengths), atol=1e-4)
-    (grad,) = torch.autograd.grad(out.normal.sum() + out.rgb.sum() + out.depth.sum(), [v])
+    (grad,) = torch.autograd.grad(out.normal.sum() + out.rgb.sum() + out.accumulated_depth.sum(), [v])
     assert bool(torch.isfinite(grad).all())

@@ -1,4 +1,4 @@
-"""eval.stability.run_stability_suite: the numbers `lts bench stability --json` will print."""
+"""lts.stress.suite.run_stability_suite: the numbers `lts bench stability --json` will print."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from eval.stability import PROFILES, run_stability_suite
+from lts.stress.suite import PROFILES, run_stability_suite
 from rig.errors import InputError
 
 
@@ -34,7 +34,7 @@ def test_bench_stability_command_prints_one_json_object() -> None:
     import typer
     from typer.testing import CliRunner
 
-    from eval.stability import bench_stability_command
+    from lts.stress.cli import bench_stability_command
 
     app = typer.Typer()
     app.command("stability")(bench_stability_command)
