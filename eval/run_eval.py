@@ -197,7 +197,7 @@ def _photometric(
         lidar = scene.depth(keyframe)
         alpha = out.alpha.detach().cpu().numpy()
         valid = (lidar > 0) & (alpha > ALPHA_SURFACE)
-        depth = out.depth.detach().cpu().numpy()[valid] / alpha[valid]
+        depth = out.expected_depth().detach().cpu().numpy()[valid]
         depth_errors.append(np.abs(depth - lidar[valid]))
     metrics["psnr"] = float(np.mean(psnrs))
     metrics["ssim"] = float(np.mean(ssims))

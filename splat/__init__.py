@@ -12,7 +12,7 @@ from rig.lazy import lazy_exports
 
 _EXPORTS = {
     "BackendUnavailableError": "splat.raster",
-    "ErrorStats": "splat.raster",
+    "DominantSums": "splat.raster",
     "RenderOutput": "splat.raster",
     "render": "splat.raster",
     "TriangleModel": "splat.model",
@@ -29,6 +29,8 @@ _EXPORTS = {
     "decouple_and_scale": "splat.init_mesh",
     "ground_fill": "splat.init_mesh",
     "delaunay_triangles": "splat.init_delaunay",
-    "densify": "splat.densify",
+    "Strategy": "splat.strategy",
+    "VarianceStrategy": "splat.strategy",
+    "OpacityStrategy": "splat.strategy",
 }
 __all__, __getattr__ = lazy_exports(__name__, _EXPORTS)

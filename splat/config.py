@@ -69,7 +69,9 @@ class TrainConfig(BaseModel):
     floor_rise_end: float = Field(0.8, ge=0, le=1)
 
     # Densification.
-    densify: Literal["variance", "opacity", "none"] = "variance"
+    densify: Literal["variance", "opacity", "none"] = Field(
+        "variance", description="the splat.strategy: variance (ours), opacity (TS+), none (final prune only)"
+    )
     clone: bool = True
     subdivide: bool = True
     densify_every: int = Field(500, ge=1)

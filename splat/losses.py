@@ -38,14 +38,14 @@ def dssim(rendered: Tensor, target: Tensor) -> Tensor:
     return 1.0 - kornia.metrics.ssim(a, b, window_size=11).mean()
 
 
-def depth_l1(out: RenderOutput, lidar_depth: Tensor) -> Tensor:
-    """Mean ``|D_rendered - D_lidar|`` (metres) over pixels with a LiDAR return (``(H, W)``, 0 =
-    none). The rendered depth is the unnormalised ``Σ w z``, so a pixel whose LiDAR saw a surface
-    is also pulled towards full coverage (a hole renders a depth near 0)."""
+def accumulated_depth_l1(out: RenderOutput, lidar_depth: Tensor) -> Tensor:
+    """Mean ``|Σ w z - D_lidar|`` (metres) over pixels with a LiDAR return (``(H, W)``, 0 = none).
+    The accumulated depth ``Σ w z`` is not divided by alpha, so a pixel whose LiDAR saw a surface is
+    also pulled towards full coverage (a hole renders a depth near 0)."""
     valid = lidar_depth > 0
     if not bool(valid.any()):
-        return out.depth.new_zeros(())
-    return (out.depth[valid] - lidar_depth[valid]).abs().mean()
+        return out.accumulated_depth.new_zeros(())
+    return (out.accumulated_depth[valid] - lidar_depth[valid]).abs().mean()
 
 
 def normal_loss(out: RenderOutput, prior: Tensor) -> Tensor:
@@ -81,7 +81,7 @@ def training_loss(
     zero = image.new_zeros(())
     l1 = (out.rgb - image).abs().mean()
     ds = dssim(out.rgb, image) if config.lambda_dssim > 0 else zero
-    depth = depth_l1(out, lidar_depth) if lidar_depth is not None and config.w_depth > 0 else zero
+    depth = accumulated_depth_l1(out, lidar_depth) if lidar_depth is not None and config.w_depth > 0 else zero
     normal = normal_loss(out, normal_prior) if normal_prior is not None and config.w_normal > 0 else zero
     in_view = out.max_weight > 0
     opacity_reg = opacity[in_view].mean() if config.w_opacity > 0 and bool(in_view.any()) else zero

@@ -93,8 +93,6 @@ class TriangleModel:
         camera: CameraModel,
         T_cam_world: Tensor,
         *,
-        target_depth: Tensor | None = None,
-        target_normal: Tensor | None = None,
         backend: str = "auto",
     ) -> RenderOutput:
         """Render the model from one camera (``T_cam_world`` ``(4, 4)``); see :func:`splat.render`."""
@@ -103,10 +101,7 @@ class TriangleModel:
         faces = torch.arange(3 * n, device=self.device).view(n, 3)
         colors = self.triangle_colors().reshape(3 * n, 3)
         opacities = self.triangle_opacity().repeat_interleave(3)
-        return render(
-            vertices, faces, colors, opacities, self.sigma, camera, T_cam_world,
-            backend=backend, target_depth=target_depth, target_normal=target_normal,
-        )  # fmt: skip
+        return render(vertices, faces, colors, opacities, self.sigma, camera, T_cam_world, backend=backend)
 
     def to_state(self) -> dict:
         """Plain tensors (detached, CPU) and schedule state, for ``torch.save``."""

@@ -23,13 +23,13 @@ from rig.errors import InputError
 from slam_bridge.scene import Scene, load_scene
 from splat import run_dir as layout
 from splat.config import TrainConfig, load_config
-from splat.densify import DensifyStats, densify
+from splat.held_out_views import evaluate_views, write_renders
 from splat.initialise import build_model, initial_triangles
 from splat.losses import training_loss
 from splat.model import TriangleModel, save_model
-from splat.param_rows import make_optimizer, replace_rows
+from splat.param_rows import make_optimizer
 from splat.schedule import final_phase_start, schedule_at
-from splat.test_views import evaluate_views, write_renders
+from splat.strategy import DensifyReport, strategy_for
 from splat.views import View, load_views, redundant_keyframes
 
 
@@ -62,7 +62,7 @@ class TrainResult:
 
 @dataclass
 class _State:
-    """Everything a checkpoint holds besides the model and the optimiser."""
+    """Everything a checkpoint holds besides the model, the optimiser and the strategy."""
 
     iteration: int = 0
     elapsed_s: float = 0.0
@@ -71,7 +71,6 @@ class _State:
     best_psnr: float = -math.inf
     evals_without_gain: int = 0
     stopped_early: bool = False
-    final_pruned: bool = False
     last_test: dict[str, float] = field(default_factory=dict)
     skips: list[str] = field(default_factory=list)
     densification: list[dict] = field(default_factory=list)
@@ -115,7 +114,7 @@ class Trainer:
         self.config = config
         self.log = log
         self.state = _State()
-        self.generator = torch.Generator().manual_seed(config.seed)
+        self.strategy = strategy_for(config, log)
         if config.device.startswith("cuda") and not torch.cuda.is_available():
             raise InputError(
                 "CUDA was asked for but torch sees no GPU here; use --device cpu", field="device"
@@ -157,13 +156,8 @@ class Trainer:
             init, self.config, self.train_views, self.scene.camera, lambda m: self.log(f"init: {m}")
         )
         self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
-        self.stats = self._empty_stats()
+        self.strategy.initialize(self.model)
         layout.metrics_path(self.run_dir).write_text("")
-
-    def _empty_stats(self) -> DensifyStats:
-        return DensifyStats.empty(
-            self.model.n_triangles, self.model.params["vertices"].dtype, self.model.device
-        )
 
     def prepare(self, resume: bool) -> None:
         """Select keyframes, load views, then initialise or restore from the last checkpoint."""
@@ -202,8 +196,7 @@ class Trainer:
         state = {
             "model": self.model.to_state(),
             "optimizer": self.optimizer.state_dict(),
-            "stats": {k: getattr(self.stats, k) for k in ("depth", "normal", "max_weight")},
-            "generator": self.generator.get_state(),
+            "strategy": self.strategy.state_dict(),
             "state": asdict(self.state),
         }
         with atomic_path(path) as tmp:
@@ -214,12 +207,16 @@ class Trainer:
             ckpt = torch.load(path, map_location="cpu", weights_only=False)
         except Exception as exc:  # a truncated or foreign file
             raise InputError(f"cannot read checkpoint ({type(exc).__name__}: {exc})", path=path) from None
+        if "strategy" not in ckpt:
+            raise InputError(
+                "checkpoint written by an older lidar-ts (no densification strategy state); train into a "
+                "new --out",
+                path=path,
+            )
         self.model = TriangleModel.from_state(ckpt["model"], self.config.device, path)
         self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
         self.optimizer.load_state_dict(ckpt["optimizer"])
-        s = ckpt["stats"]
-        self.stats = DensifyStats(s["depth"], s["normal"], s["max_weight"])
-        self.generator.set_state(ckpt["generator"])
+        self.strategy.load_state_dict(ckpt["strategy"])
         self.state = _State(**ckpt["state"])
         # Keep only the evaluations the checkpoint had already made.
         kept = [row for row in layout.read_metrics(self.run_dir) if row["iteration"] <= self.state.iteration]
@@ -228,70 +225,46 @@ class Trainer:
 
     # -- the loop -------------------------------------------------------------------------------
     def _step(self, it: int) -> dict[str, float] | None:
-        config = self.config
-        _apply_schedule(self.model, self.optimizer, config, it)
-        n = len(self.train_views)
-        view = self.train_views[_view_order(config.seed, it // n, n)[it % n]]
-        collect = config.densify != "none" and it < config.densify_until * config.iterations
-        out = self.model.render(
-            self.scene.camera, view.T_cam_world,
-            target_depth=view.depth if collect else None, target_normal=view.normal if collect else None,
-        )  # fmt: skip
-        terms = training_loss(out, view.image, view.depth, view.normal, self.model.triangle_opacity(), config)
+        """Iteration ``it``: the strategy's work before the render, the schedule, one training view's
+        render and loss, the optimiser step (rejected when not finite), then the strategy's
+        densification. Returns the loss terms, or None for a rejected step."""
+        self.strategy.before_step(self.model, self.optimizer, it)
+        _apply_schedule(self.model, self.optimizer, self.config, it)
+        view = self._training_view(it)
+        out = self.model.render(self.scene.camera, view.T_cam_world)
+        opacity = self.model.triangle_opacity()
+        terms = training_loss(out, view.image, view.depth, view.normal, opacity, self.config)
         terms.total.backward()
-        if not _finite_step(terms.total, self.model):
-            self.optimizer.zero_grad(set_to_none=True)
-            self.state.rejected_total += 1
-            self.state.rejected_in_a_row += 1
-            if self.state.rejected_in_a_row >= config.max_rejected_steps:
-                raise TrainingDivergedError(
-                    f"{self.state.rejected_in_a_row} steps in a row had a non-finite loss or gradient (last "
-                    f"at iteration {it}); the learning rates are probably too high for this scene"
-                )
-            return None
-        self.state.rejected_in_a_row = 0
-        self.optimizer.step()
+        accepted = self._optimizer_step(terms.total, it)
+        report = self.strategy.after_step(self.model, self.optimizer, it, out if accepted else None, view)
+        self._record(report)
+        return terms.as_floats() if accepted else None
+
+    def _training_view(self, it: int) -> View:
+        n = len(self.train_views)
+        return self.train_views[_view_order(self.config.seed, it // n, n)[it % n]]
+
+    def _optimizer_step(self, loss: torch.Tensor, it: int) -> bool:
+        """Step the optimiser if ``loss`` and every gradient are finite, else count a rejected step
+        (too many in a row: :class:`TrainingDivergedError`); the gradients are cleared either way."""
+        finite = _finite_step(loss, self.model)
+        if finite:
+            self.optimizer.step()
         self.optimizer.zero_grad(set_to_none=True)
-        if collect:
-            self.stats.add(out)
-        return terms.as_floats()
-
-    def _maybe_densify(self, it: int) -> None:
-        config = self.config
-        done = it + 1
-        if (
-            config.densify == "none"
-            or done % config.densify_every
-            or done > config.densify_until * config.iterations
-        ):
-            return
-        report = densify(self.model, self.optimizer, self.stats, config, self.generator, done)
-        self.state.densification.append(asdict(report))
-        if report.skipped:
-            self.state.skips.append(f"densification at {done} skipped: {report.skipped}")
-        elif report.below_noise_floor:
-            self.state.skips.append(
-                f"densification at {done}: {report.below_noise_floor} seen triangles within LiDAR/normal "
-                "noise, not sampled"
+        self.state.rejected_total += not finite
+        self.state.rejected_in_a_row = 0 if finite else self.state.rejected_in_a_row + 1
+        if self.state.rejected_in_a_row >= self.config.max_rejected_steps:
+            raise TrainingDivergedError(
+                f"{self.state.rejected_in_a_row} steps in a row had a non-finite loss or gradient (last "
+                f"at iteration {it}); the learning rates are probably too high for this scene"
             )
-        self.log(
-            f"densify @{done}: pruned {report.pruned}, cloned {report.cloned}, "
-            f"subdivided {report.subdivided} → {report.after} triangles"
-        )
-        self.stats = self._empty_stats()
+        return finite
 
-    def _maybe_final_prune(self, it: int) -> None:
-        """Before the opacity floor rises, drop triangles the optimiser made transparent: the floor
-        would otherwise turn them into opaque junk."""
-        if self.state.final_pruned or it < self.config.floor_rise_start * self.config.iterations:
-            return
-        self.state.final_pruned = True
-        keep = self.model.triangle_opacity().detach() >= self.config.final_prune_opacity
-        if not bool(keep.all()):
-            empty = {k: v[:0].detach() for k, v in self.model.params.items()}
-            replace_rows(self.model, self.optimizer, keep, empty)
-            self.stats = self._empty_stats()
-            self.log(f"pruned {int((~keep).sum())} transparent triangles before the opacity floor rises")
+    def _record(self, report: DensifyReport | None) -> None:
+        if report is not None:
+            self.state.densification.append(asdict(report))
+            if note := report.note():
+                self.state.skips.append(note)
 
     def _evaluate(self, it: int, losses: dict[str, float]) -> None:
         test = evaluate_views(self.model, self.test_views, self.scene.camera) if self.test_views else {}
@@ -328,10 +301,7 @@ class Trainer:
                 while self.state.iteration < config.iterations and not self.state.stopped_early:
                     it = self.state.iteration
                     started = time.perf_counter()
-                    self._maybe_final_prune(it)
-                    step_losses = self._step(it)
-                    losses = step_losses or losses
-                    self._maybe_densify(it)
+                    losses = self._step(it) or losses
                     self.state.iteration = it + 1
                     self.state.elapsed_s += time.perf_counter() - started
                     done = self.state.iteration

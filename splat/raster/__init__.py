@@ -8,6 +8,6 @@ the pure-PyTorch :mod:`~splat.raster.reference` (the specification), or a compil
 
 from splat.raster.extension import BackendUnavailableError
 from splat.raster.render import RenderOutput, render
-from splat.raster.stats import ErrorStats
+from splat.raster.stats import DominantSums
 
-__all__ = ["BackendUnavailableError", "ErrorStats", "RenderOutput", "render"]
+__all__ = ["BackendUnavailableError", "DominantSums", "RenderOutput", "render"]

@@ -96,9 +96,8 @@ def _step(scene: TriangleScene, backend: str, device: str) -> Callable[[], None]
     def step() -> None:
         leaves = [t.detach().requires_grad_(t.is_floating_point()) for t in tensors]
         out = render(*leaves, scene.camera, backend=backend)
-        loss = sum(
-            x.sum() for x in (out.rgb, out.depth, out.alpha, out.normal, out.median_depth, out.distortion)
-        )
+        outputs = (out.rgb, out.accumulated_depth, out.alpha, out.normal, out.median_depth, out.distortion)
+        loss = sum(x.sum() for x in outputs)
         loss.backward()
 
     return step

@@ -9,9 +9,10 @@ For pixel p (centre at integer coordinates) and triangle k, in front-to-back ord
 * weight ``w = alpha T`` with ``T`` the transmittance in front of the pair;
 * colour and depth of the pair are barycentric (depth perspective-correct) at p.
 
-Outputs: rgb = sum w c, depth = sum w z, alpha = sum w, normal = sum w n, median = z of the last
-composited pair with T > 0.5 in front of it (0 if none), distortion = sum_{i<j} w_i w_j (z_i-z_j)^2
-(2DGS, on camera depth), dominant = first pair with the largest w. Autograd gives the backward.
+Outputs: rgb = sum w c, accumulated depth = sum w z, alpha = sum w, normal = sum w n, median = z
+of the last composited pair with T > 0.5 in front of it (0 if none), distortion =
+sum_{i<j} w_i w_j (z_i-z_j)^2 (2DGS, on camera depth), dominant = first pair with the largest w.
+Autograd gives the backward.
 Tiles are processed in chunks so that memory stays bounded.
 """
 
@@ -64,9 +65,9 @@ def _rasterize_tiles(params: Tensor, bins: TileBins, tiles: Tensor, width: int, 
     z = 1.0 / torch.where(included, inv_depth, 1.0)
 
     acc = w.sum(dim=-1)
-    depth = (w * z).sum(dim=-1)
+    accumulated_depth = (w * z).sum(dim=-1)
     hit = acc > 0
-    mean = torch.where(hit, depth, 0.0) / torch.where(hit, acc, 1.0)
+    mean = torch.where(hit, accumulated_depth, 0.0) / torch.where(hit, acc, 1.0)
     distortion = acc * (w * (z - mean[..., None]) ** 2).sum(dim=-1)
     median_pos = torch.where(included & (t_before > 0.5), pos, -1).max(dim=-1).values
     median = torch.where(median_pos >= 0, z.gather(-1, median_pos.clamp(min=0)[..., None])[..., 0], 0.0)
@@ -80,7 +81,7 @@ def _rasterize_tiles(params: Tensor, bins: TileBins, tiles: Tensor, width: int, 
     normal = torch.bmm(w, prm[:, 0, :, NORMAL : NORMAL + 3])
     return (
         flat(rgb),
-        flat(depth),
+        flat(accumulated_depth),
         flat(acc),
         flat(normal),
         flat(median),

@@ -17,7 +17,7 @@ from splat.raster.kernel import rasterize_kernel
 from splat.raster.project import Intrinsics, project_triangles
 from splat.raster.reference import rasterize_reference
 from splat.raster.setup_kernel import project_triangles_kernel
-from splat.raster.stats import ErrorStats, depth_error_stats, normal_error_stats
+from splat.raster.stats import DominantSums, dominant_sums
 
 Backend = Literal["auto", "cpu", "cuda", "reference"]
 
@@ -28,27 +28,34 @@ class RenderOutput:
 
     Attributes:
         rgb: ``(H, W, 3)`` sum of w c (black background; add ``bg * (1 - alpha)`` for another).
-        depth: ``(H, W)`` expected camera depth sum of w z (metres, not divided by alpha).
+        accumulated_depth: ``(H, W)`` sum of w z, camera depth (metres) not divided by alpha; see
+            :meth:`expected_depth` for the depth itself.
         alpha: ``(H, W)`` accumulated opacity sum of w.
         normal: ``(H, W, 3)`` sum of w n, camera frame, normals facing the camera.
         median_depth: ``(H, W)`` depth of the triangle where transmittance crosses 0.5 (0: none).
         distortion: ``(H, W)`` 2DGS depth distortion sum_{i<j} w_i w_j (z_i - z_j)^2.
         dominant: ``(H, W)`` int64 face with the largest weight at each pixel, -1 for none.
         max_weight: ``(F,)`` largest blending weight of each face over the image (0 if unseen).
-        depth_error: stats of ``d_gt - d_r`` per dominant face, if a target depth was given.
-        normal_error: stats of ``1 - n_gt . n_r`` per dominant face, if a target normal was given.
     """
 
     rgb: Tensor
-    depth: Tensor
+    accumulated_depth: Tensor
     alpha: Tensor
     normal: Tensor
     median_depth: Tensor
     distortion: Tensor
     dominant: Tensor
     max_weight: Tensor
-    depth_error: ErrorStats | None = None
-    normal_error: ErrorStats | None = None
+
+    def expected_depth(self) -> Tensor:
+        """``(H, W)`` expected depth ``sum w z / sum w`` (metres; 0 where no triangle is seen)."""
+        hit = self.alpha > 0
+        return torch.where(hit, self.accumulated_depth / torch.where(hit, self.alpha, 1.0), 0.0)
+
+    def dominant_sums(self, values: Tensor, valid: Tensor) -> DominantSums:
+        """Count, sum and sum of squares ``(F,)`` of the per-pixel ``values`` ``(H, W)`` over the
+        ``valid`` ``(H, W)`` pixels each face dominates (no gradient)."""
+        return dominant_sums(self.dominant, values, valid, len(self.max_weight))
 
 
 def _intrinsics(camera: CameraModel) -> Intrinsics:
@@ -94,8 +101,6 @@ def render(
     *,
     near: float = 0.02,
     backend: Backend = "auto",
-    target_depth: Tensor | None = None,
-    target_normal: Tensor | None = None,
 ) -> RenderOutput:
     """Render triangles with Triangle Splatting (TS+) windows, differentiably.
 
@@ -110,8 +115,6 @@ def render(
         near: triangles with a vertex closer than this (metres) are culled.
         backend: ``"auto"`` picks the compiled kernel for the tensors' device; ``"cpu"``/``"cuda"``
             force one; ``"reference"`` is the slow pure-PyTorch specification (opt-in only).
-        target_depth: ``(H, W)`` LiDAR depth (<= 0 or NaN: no target) for ``depth_error``.
-        target_normal: ``(H, W, 3)`` unit normals, camera frame (zero: no target) for ``normal_error``.
 
     Returns:
         A :class:`RenderOutput`; gradients flow to vertices, colours, opacities and sigma.
@@ -156,14 +159,7 @@ def render(
     dominant = torch.cat([tris.index, tris.index.new_full((1,), -1)])[images.dominant]
     max_weight = torch.zeros(len(faces), dtype=dtype, device=device)
     max_weight[tris.index] = images.max_weight.detach()
-    out = RenderOutput(
-        images.rgb, images.depth, images.alpha, images.normal, images.median,
+    return RenderOutput(
+        images.rgb, images.accumulated_depth, images.alpha, images.normal, images.median,
         images.distortion, dominant, max_weight,
     )  # fmt: skip
-    if target_depth is not None:
-        _check("target_depth", target_depth.nan_to_num(0.0), (intr.height, intr.width), dtype)
-        out.depth_error = depth_error_stats(dominant, out.depth.detach(), target_depth, len(faces))
-    if target_normal is not None:
-        _check("target_normal", target_normal.nan_to_num(0.0), (intr.height, intr.width, 3), dtype)
-        out.normal_error = normal_error_stats(dominant, out.normal.detach(), target_normal, len(faces))
-    return out

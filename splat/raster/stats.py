@@ -1,5 +1,8 @@
-"""Per-triangle geometric error statistics over the pixels each triangle dominates (for
-geometric-variance densification)."""
+"""Per-triangle sums of a per-pixel quantity over the pixels each triangle dominates.
+
+The rasteriser knows nothing of what the quantity means: a caller (a densification strategy) hands
+it per-pixel values, and gets back their count, sum and sum of squares per dominant triangle.
+"""
 
 from __future__ import annotations
 
@@ -10,12 +13,24 @@ from torch import Tensor
 
 
 @dataclass
-class ErrorStats:
-    """Count, sum and sum of squares ``(F,)`` of an error over the pixels a face dominates."""
+class DominantSums:
+    """Count, sum and sum of squares ``(F,)`` of a per-pixel quantity over the pixels a face dominates."""
 
     count: Tensor
     sum: Tensor
     sum_sq: Tensor
+
+    @classmethod
+    def zeros(cls, n_faces: int, dtype: torch.dtype, device: torch.device) -> DominantSums:
+        """Empty sums for ``n_faces`` faces (``count`` int64, the sums ``dtype``)."""
+        z = torch.zeros(n_faces, dtype=dtype, device=device)
+        return cls(torch.zeros(n_faces, dtype=torch.int64, device=device), z.clone(), z.clone())
+
+    def add(self, other: DominantSums) -> None:
+        """Fold ``other`` (the same faces) into these sums, in place."""
+        self.count += other.count
+        self.sum += other.sum
+        self.sum_sq += other.sum_sq
 
     def variance(self) -> Tensor:
         """``(F,)`` population variance ``E[e^2] - E[e]^2`` (0 where the count is 0)."""
@@ -23,33 +38,26 @@ class ErrorStats:
         return (self.sum_sq / n - (self.sum / n) ** 2).clamp(min=0)
 
 
-def _accumulate(dominant: Tensor, error: Tensor, valid: Tensor, n_faces: int) -> ErrorStats:
-    owned = valid & (dominant >= 0)
-    ids, e = dominant[owned], error[owned]
-    # bincount sums serially on the CPU, so the statistics are deterministic there.
-    return ErrorStats(
-        count=torch.bincount(ids, minlength=n_faces),
-        sum=torch.bincount(ids, weights=e, minlength=n_faces).to(error.dtype),
-        sum_sq=torch.bincount(ids, weights=e * e, minlength=n_faces).to(error.dtype),
-    )
-
-
 @torch.no_grad()
-def depth_error_stats(dominant: Tensor, depth: Tensor, target: Tensor, n_faces: int) -> ErrorStats:
-    """Stats of ``target - depth`` (both ``(H, W)``); pixels whose target is not > 0 are skipped.
+def dominant_sums(dominant: Tensor, values: Tensor, valid: Tensor, n_faces: int) -> DominantSums:
+    """Sums of ``values`` over the ``valid`` pixels each face dominates.
 
-    ``dominant`` is ``(H, W)`` int64 face index (-1 for none).
+    Args:
+        dominant: ``(H, W)`` int64 face with the largest weight at each pixel, -1 for none.
+        values: ``(H, W)`` the per-pixel quantity (ignored where ``valid`` is False).
+        valid: ``(H, W)`` bool, the pixels that count.
+        n_faces: ``F``, the length of the returned sums.
     """
-    valid = torch.isfinite(target) & (target > 0)
-    return _accumulate(dominant, torch.where(valid, target - depth, 0.0), valid, n_faces)
-
-
-@torch.no_grad()
-def normal_error_stats(dominant: Tensor, normal: Tensor, target: Tensor, n_faces: int) -> ErrorStats:
-    """Stats of ``1 - n_gt . n_r`` with ``n_r`` the unit rendered normal, both ``(H, W, 3)``;
-    pixels whose target is zero or not finite are skipped."""
-    length = normal.norm(dim=-1, keepdim=True)
-    unit = normal / length.clamp(min=torch.finfo(normal.dtype).tiny)
-    valid = torch.isfinite(target).all(dim=-1) & (target.abs().sum(dim=-1) > 0) & (length[..., 0] > 0)
-    error = 1.0 - (torch.where(valid[..., None], target, 0.0) * unit).sum(dim=-1)
-    return _accumulate(dominant, error, valid, n_faces)
+    if values.shape != dominant.shape or valid.shape != dominant.shape:
+        raise ValueError(
+            f"values {tuple(values.shape)} and valid {tuple(valid.shape)} must have the image's shape "
+            f"{tuple(dominant.shape)}"
+        )
+    owned = valid & (dominant >= 0)
+    ids, e = dominant[owned], values[owned]
+    # bincount sums serially on the CPU, so the sums are deterministic there.
+    return DominantSums(
+        count=torch.bincount(ids, minlength=n_faces),
+        sum=torch.bincount(ids, weights=e, minlength=n_faces).to(values.dtype),
+        sum_sq=torch.bincount(ids, weights=e * e, minlength=n_faces).to(values.dtype),
+    )

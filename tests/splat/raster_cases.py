@@ -9,7 +9,7 @@ from splat.raster import RenderOutput, render
 from splat.raster.scenes import TriangleScene, pinhole, random_scene
 
 CAMERA = pinhole(48, 32)
-OUTPUTS = ("rgb", "depth", "alpha", "normal", "median_depth", "distortion")
+OUTPUTS = ("rgb", "accumulated_depth", "alpha", "normal", "median_depth", "distortion")
 INPUTS = ("vertices", "colors", "opacities", "sigma")
 
 

@@ -9,6 +9,7 @@ import torch
 from raster_cases import CAMERA, INPUTS, OUTPUTS, gradients, random_case, rel_l2, weighted
 
 from splat.raster import render
+from splat.strategy.variance import depth_error, normal_error
 
 F64 = torch.float64
 
@@ -70,7 +71,9 @@ def test_front_to_back_order_by_depth_not_by_face_order(backend: str) -> None:
     assert n > 10
     # The near triangle (face 1, blue) composites first although it is listed second.
     torch.testing.assert_close(out.rgb[both], torch.tensor([[w_far, 0.0, w_near]], dtype=F64).expand(n, 3))
-    torch.testing.assert_close(out.depth[both], torch.full((n,), w_near * 2 + w_far * 3, dtype=F64))
+    torch.testing.assert_close(
+        out.accumulated_depth[both], torch.full((n,), w_near * 2 + w_far * 3, dtype=F64)
+    )
     assert bool((out.dominant[both] == 1).all())
     # T = 0.01 < 0.5 behind the near triangle: the median is its depth.
     torch.testing.assert_close(out.median_depth[both], torch.full((n,), 2.0, dtype=F64))
@@ -93,11 +96,12 @@ def test_depth_is_perspective_correct_and_normals_face_the_camera(backend: str) 
             [(xs - CAMERA.cx) / CAMERA.fx, (ys - CAMERA.cy) / CAMERA.fy, torch.ones_like(xs, dtype=F64)], -1
         )
         plane_depth = (n @ c) / (rays @ n)
-        torch.testing.assert_close(out.depth[hit] / out.alpha[hit], plane_depth)
+        torch.testing.assert_close(out.expected_depth()[hit], plane_depth)
+        assert not bool(out.expected_depth()[~hit].any())
         torch.testing.assert_close(out.normal[hit] / out.alpha[hit, None], n.expand(len(xs), 3))
 
 
-def test_geometric_error_statistics_over_dominated_pixels(backend: str) -> None:
+def test_sums_of_the_geometric_errors_over_dominated_pixels(backend: str) -> None:
     vertices, faces = (
         torch.tensor([v for v in _triangle(opacity=1.0, sigma=0.3)[0]], dtype=F64),
         torch.arange(3)[None],
@@ -108,17 +112,19 @@ def test_geometric_error_statistics_over_dominated_pixels(backend: str) -> None:
     normal_target[..., 2] = -1.0
     out = render(
         vertices, faces, torch.ones(3, 3, dtype=F64), torch.ones(3, dtype=F64), 0.3, CAMERA,
-        backend=backend, target_depth=target, target_normal=normal_target,
+        backend=backend,
     )  # fmt: skip
+    depth_sums = out.dominant_sums(*depth_error(out, target))
+    normal_sums = out.dominant_sums(*normal_error(out, normal_target))
     owned = (out.dominant == 0) & (target > 0)
-    err = (target - out.depth)[owned]
-    assert int(out.depth_error.count[0]) == int(owned.sum()) > 0
-    assert float(out.depth_error.sum[0]) == pytest.approx(float(err.sum()))
-    assert float(out.depth_error.sum_sq[0]) == pytest.approx(float((err**2).sum()))
+    err = (target - out.accumulated_depth)[owned]
+    assert int(depth_sums.count[0]) == int(owned.sum()) > 0
+    assert float(depth_sums.sum[0]) == pytest.approx(float(err.sum()))
+    assert float(depth_sums.sum_sq[0]) == pytest.approx(float((err**2).sum()))
     # The rendered normal is (0, 0, -1) scaled by alpha: unit normal error 0 on every owned pixel.
-    assert int(out.normal_error.count[0]) == int((out.dominant == 0).sum())
-    assert float(out.normal_error.sum_sq[0]) == pytest.approx(0.0, abs=1e-20)
-    assert float(out.depth_error.variance()[0]) == pytest.approx(float(err.var(unbiased=False)))
+    assert int(normal_sums.count[0]) == int((out.dominant == 0).sum())
+    assert float(normal_sums.sum_sq[0]) == pytest.approx(0.0, abs=1e-20)
+    assert float(depth_sums.variance()[0]) == pytest.approx(float(err.var(unbiased=False)))
 
 
 # Which inputs each output depends on smoothly (colours only reach rgb; the median depth is the

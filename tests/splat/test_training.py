@@ -11,11 +11,14 @@ import trimesh
 from training_scene import CAMERA, camera_poses, corner_mesh, write_training_scene
 
 from splat.config import make_config
-from splat.densify import DensifyStats, _cloned, _subdivided, densify
 from splat.init_mesh import decouple_and_scale, ground_fill
 from splat.model import TriangleModel, load_model
 from splat.param_rows import make_optimizer, replace_rows
+from splat.strategy import OpacityStrategy, VarianceStrategy
+from splat.strategy.growth import cloned_rows, subdivided_rows
+from splat.strategy.variance import depth_error
 from splat.trainer import Trainer, TrainingDivergedError, train
+from splat.views import View
 
 
 @pytest.fixture(scope="module")
@@ -79,16 +82,26 @@ def _area(t: torch.Tensor) -> torch.Tensor:
 def test_clone_preserves_transmittance_and_subdivision_covers_the_parent():
     model = _model(4)
     rows = torch.tensor([1, 3])
-    clones = _cloned(model, rows)
+    clones = cloned_rows(model, rows)
     o = torch.sigmoid(model.params["opacity"].detach()[rows])
     o_clone = torch.sigmoid(clones["opacity"][:2])
     torch.testing.assert_close(1 - (1 - o_clone) ** 2, o, rtol=1e-4, atol=1e-5)
     torch.testing.assert_close(clones["vertices"][:2], clones["vertices"][2:])
 
-    children = _subdivided(model, rows)["vertices"].view(4, 2, 3, 3)  # child-major, then parent
+    children = subdivided_rows(model, rows)["vertices"].view(4, 2, 3, 3)  # child-major, then parent
     parents = model.params["vertices"].detach()[rows]
     torch.testing.assert_close(_area(children).sum(0), _area(parents), rtol=1e-5, atol=1e-7)
     torch.testing.assert_close(children.mean(dim=(0, 2)), parents.mean(dim=1), rtol=1e-5, atol=1e-6)
+
+
+def _optimizer(model: TriangleModel) -> torch.optim.Adam:
+    return make_optimizer(model, {"vertices": 0.01, "colors": 0.01, "opacity": 0.01})
+
+
+def _variance_strategy(model: TriangleModel, **overrides) -> VarianceStrategy:
+    strategy = VarianceStrategy(_tiny_config(**overrides), log=lambda *_: None)
+    strategy.initialize(model)
+    return strategy
 
 
 def test_variance_statistics_match_a_direct_computation():
@@ -96,41 +109,70 @@ def test_variance_statistics_match_a_direct_computation():
     g = torch.Generator().manual_seed(4)
     target = 3.0 + torch.rand(CAMERA.height, CAMERA.width, generator=g)
     target[torch.rand(target.shape, generator=g) < 0.3] = 0  # pixels without LiDAR
-    out = model.render(CAMERA, torch.eye(4), target_depth=target)
-    stats = DensifyStats.empty(model.n_triangles, torch.float32, torch.device("cpu"))
-    stats.add(out)
-    stats.add(out)  # accumulating a view twice leaves the variance unchanged
-    dominant, depth = out.dominant.numpy(), out.depth.detach().numpy()
+    out = model.render(CAMERA, torch.eye(4))
+    view = View("v", torch.eye(4), torch.zeros(CAMERA.height, CAMERA.width, 3), depth=target, normal=None)
+    strategy = _variance_strategy(model)
+    strategy.gather(model, out, view)
+    strategy.gather(model, out, view)  # accumulating a view twice leaves the variance unchanged
+    dominant, depth = out.dominant.numpy(), out.accumulated_depth.detach().numpy()
     for face in range(model.n_triangles):
         mask = (dominant == face) & (target.numpy() > 0)
         expected = np.var(target.numpy()[mask] - depth[mask]) if mask.any() else 0.0
-        assert int(stats.depth.count[face]) == 2 * mask.sum()
-        assert float(stats.depth.variance()[face]) == pytest.approx(expected, rel=1e-3, abs=1e-6)
+        assert int(strategy.depth_error.count[face]) == 2 * mask.sum()
+        assert float(strategy.depth_error.variance()[face]) == pytest.approx(expected, rel=1e-3, abs=1e-6)
+    assert torch.equal(depth_error(out, target)[1], target > 0)
 
 
 def test_densification_with_all_zero_weights_is_skipped_not_a_crash():
     model = _model(6)
-    optimizer = make_optimizer(model, {"vertices": 0.01, "colors": 0.01, "opacity": 0.01})
-    stats = DensifyStats.empty(6, torch.float32, torch.device("cpu"))
-    stats.max_weight[:] = 1.0  # every triangle seen, no error at all
-    report = densify(model, optimizer, stats, _tiny_config(), torch.Generator().manual_seed(0), 20)
+    strategy = _variance_strategy(model)
+    strategy.max_weight[:] = 1.0  # every triangle seen, no error at all
+    report = strategy.densify(model, _optimizer(model), 20)
     assert report.skipped and "positive sampling weight" in report.skipped
     assert model.n_triangles == 6 and report.cloned == report.subdivided == 0
 
 
 def test_variance_sampling_clones_depth_errors_and_subdivides_normal_errors():
     model = _model(4)
-    optimizer = make_optimizer(model, {"vertices": 0.01, "colors": 0.01, "opacity": 0.01})
-    stats = DensifyStats.empty(4, torch.float32, torch.device("cpu"))
-    stats.max_weight[:] = 1.0
-    stats.depth.count[:] = 100
-    stats.depth.sum_sq[0] = 100 * 0.2**2  # triangle 0: 20 cm depth spread → clone
-    stats.normal.count[:] = 100
-    stats.normal.sum_sq[1] = 100 * 0.5**2  # triangle 1: normal spread → subdivide
-    config = _tiny_config(growth_rate=2.0)
-    report = densify(model, optimizer, stats, config, torch.Generator().manual_seed(0), 20)
+    strategy = _variance_strategy(model, growth_rate=2.0)
+    strategy.max_weight[:] = 1.0
+    strategy.depth_error.count[:] = 100
+    strategy.depth_error.sum_sq[0] = 100 * 0.2**2  # triangle 0: 20 cm depth spread → clone
+    strategy.normal_error.count[:] = 100
+    strategy.normal_error.sum_sq[1] = 100 * 0.5**2  # triangle 1: normal spread → subdivide
+    report = strategy.densify(model, _optimizer(model), 20)
     assert (report.cloned, report.subdivided) == (1, 1)
     assert model.n_triangles == 2 + 2 + 4
+    assert strategy.max_weight.shape == (8,) and strategy.depth_error.count.shape == (8,)  # fresh statistics
+
+
+def test_a_strategy_densifies_on_schedule_and_moves_adam_state_with_the_rows():
+    model = _model(5)
+    with torch.no_grad():
+        model.params["opacity"][4] = -10.0  # transparent: pruned
+    optimizer = _optimizer(model)
+    for p in model.params.values():
+        p.grad = torch.arange(p.numel(), dtype=p.dtype).view_as(p) + 1.0
+    optimizer.step()
+    before = {name: optimizer.state[p]["exp_avg"].clone() for name, p in model.params.items()}
+    vertices = model.params["vertices"].detach().clone()
+    strategy = OpacityStrategy(_tiny_config(growth_rate=1.5), log=lambda *_: None)  # budget: 6 = 2 splits
+    strategy.initialize(model)
+    strategy.max_weight[:4] = 1.0  # triangles 0-3 seen
+    assert strategy.after_step(model, optimizer, 18, None, None) is None  # densify_every = 20
+    report = strategy.after_step(model, optimizer, 19, None, None)
+    assert (report.iteration, report.pruned, report.cloned, report.subdivided) == (20, 1, 0, 2)
+    assert model.n_triangles == 2 + 2 * 4
+    # The two kept, unsampled rows come first, in order; the 8 children after them.
+    kept = [next(i for i in range(4) if torch.equal(vertices[i], v)) for v in model.params["vertices"][:2]]
+    assert kept == sorted(kept)
+    for name, p in model.params.items():
+        group = next(g for g in optimizer.param_groups if g["name"] == name)
+        assert group["params"][0] is p and p.is_leaf and p.requires_grad
+        state = optimizer.state[p]
+        assert torch.equal(state["exp_avg"][:2], before[name][kept])
+        assert not state["exp_avg"][2:].any() and not state["exp_avg_sq"][2:].any()
+    optimizer.step()  # the optimiser still works on the new tensors
 
 
 def test_ground_fill_covers_a_hole_in_the_floor():

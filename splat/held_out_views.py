@@ -16,7 +16,8 @@ from splat.views import View
 @torch.no_grad()
 def evaluate_views(model: TriangleModel, views: list[View], camera) -> dict[str, float]:
     """Mean test PSNR (dB), SSIM (kornia, zero-padded windows: for early stopping and curves — the
-    reported numbers come from :mod:`eval`) and median |depth - LiDAR| (m) over covered LiDAR pixels."""
+    reported numbers come from :mod:`eval`) and median |expected depth - LiDAR| (m) over LiDAR pixels
+    with alpha > 0.5."""
     psnrs, ssims, depth_errors = [], [], []
     for view in views:
         out = model.render(camera, view.T_cam_world)
@@ -26,8 +27,7 @@ def evaluate_views(model: TriangleModel, views: list[View], camera) -> dict[str,
         ssims.append(1 - float(dssim(rgb, view.image)))
         if view.depth is not None:
             valid = (view.depth > 0) & (out.alpha > 0.5)
-            depth = out.depth[valid] / out.alpha[valid]
-            depth_errors.append((depth - view.depth[valid]).abs().cpu())
+            depth_errors.append((out.expected_depth()[valid] - view.depth[valid]).abs().cpu())
     result = {"test_psnr": float(np.mean(psnrs)), "test_ssim": float(np.mean(ssims))}
     if depth_errors:
         result["test_depth_l1_m"] = float(torch.cat(depth_errors).median())
