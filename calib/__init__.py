@@ -19,7 +19,7 @@ from calib.intrinsics import IntrinsicsResult, calibrate_intrinsics
 from calib.overlay import write_comparison
 from calib.session_calib import calibrate_session
 from calib.target_based import BoardObservation, board_observations, calibrate_with_board
-from calib.targetless import ExtrinsicPair, ExtrinsicResult, pose_difference, refine_extrinsic
+from calib.targetless import ExtrinsicPair, ExtrinsicResult, refine_extrinsic
 from calib.time_offset import TimeOffsetResult, estimate_time_offset
 
 __all__ = [
@@ -39,7 +39,6 @@ __all__ = [
     "calibrate_with_board",
     "detect_views",
     "estimate_time_offset",
-    "pose_difference",
     "refine_extrinsic",
     "write_comparison",
 ]

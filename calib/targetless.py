@@ -35,7 +35,7 @@ from calib.features import edge_field, lidar_edges
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.pointcloud_io import PointCloud
-from rig.transforms import make_transform, transform_points
+from rig.transforms import distance_and_angle, make_transform, transform_points
 
 #: Images wider than this are downscaled to it; blur and edge widths below are in pixels at
 #: this width and scale with the working image.
@@ -86,7 +86,8 @@ class ExtrinsicResult:
 
     def change_from_init(self) -> tuple[float, float]:
         """Rotation (degrees) and translation (metres) between the result and the initial guess."""
-        return pose_difference(self.T_cam_lidar, self.T_init)
+        distance, angle = distance_and_angle(self.T_cam_lidar, self.T_init)
+        return float(np.degrees(angle)), float(distance)
 
     def to_json(self) -> dict[str, Any]:
         """The fields ``lts calibrate extrinsic --json`` prints (and the ``quality:`` block holds)."""
@@ -106,13 +107,6 @@ class ExtrinsicResult:
             "n_edge_points": self.n_edge_points,
             **self.extra,
         }
-
-
-def pose_difference(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
-    """Rotation angle (degrees) and translation distance (metres) between two transforms."""
-    R = T_a[:3, :3] @ T_b[:3, :3].T
-    angle = float(np.degrees(Rotation.from_matrix(R).magnitude()))
-    return angle, float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]))
 
 
 def apply_increment(x: np.ndarray, T_init: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ from rig.trajectory_io import (
 )
 from rig.transforms import (
     check_rigid,
+    distance_and_angle,
     from_quaternion,
     invert,
     make_transform,
@@ -48,6 +49,7 @@ __all__ = [
     "Trajectory",
     "check_rigid",
     "detect_format",
+    "distance_and_angle",
     "from_quaternion",
     "invert",
     "load_calibration",

@@ -41,6 +41,17 @@ def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ T[:3, :3].T + T[:3, 3]
 
 
+def distance_and_angle(T_a: np.ndarray, T_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far apart two poses are: the distance (m) between their positions and the angle (rad)
+    between their orientations. ``T_a``, ``T_b``: ``(..., 4, 4)`` (broadcast); returns two arrays of
+    the broadcast leading shape (0-d for single poses: ``float()`` them)."""
+    T_a, T_b = np.broadcast_arrays(np.asarray(T_a, dtype=np.float64), np.asarray(T_b, dtype=np.float64))
+    distance = np.linalg.norm(T_a[..., :3, 3] - T_b[..., :3, 3], axis=-1)
+    relative = np.swapaxes(T_b[..., :3, :3], -1, -2) @ T_a[..., :3, :3]
+    angle = Rotation.from_matrix(relative.reshape(-1, 3, 3)).magnitude().reshape(distance.shape)
+    return distance, angle
+
+
 def from_quaternion(quat_xyzw: np.ndarray, translation: np.ndarray) -> np.ndarray:
     """Transforms ``(..., 4, 4)`` from unit quaternions ``(..., 4)`` (x, y, z, w) and translations."""
     quat_xyzw = np.asarray(quat_xyzw, dtype=np.float64)

@@ -12,7 +12,7 @@ from rig.messages import Frame
 from rig.session import SessionReader
 from rig.session.ros_messages import msg_to_frame
 from rig.trajectory import Trajectory
-from rig.transforms import invert
+from rig.transforms import distance_and_angle, invert
 from slam_bridge.scene import Keyframe
 
 
@@ -70,9 +70,8 @@ def select_keyframes(
         if poses is None:
             keep = (frame_t_ns[covered[j]] - frame_t_ns[covered[chosen[-1]]]) * 1e-9 >= interval_s - 1e-6
         else:
-            relative = invert(poses[chosen[-1]]) @ poses[j]
-            angle = np.degrees(np.arccos(np.clip((np.trace(relative[:3, :3]) - 1) / 2, -1.0, 1.0)))
-            keep = np.linalg.norm(relative[:3, 3]) >= min_motion[0] or angle >= min_motion[1]
+            moved, angle = distance_and_angle(poses[j], poses[chosen[-1]])
+            keep = moved >= min_motion[0] or np.degrees(angle) >= min_motion[1]
         if keep:
             chosen.append(j)
     return covered[np.asarray(chosen)]

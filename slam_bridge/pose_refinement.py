@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 
 from rig.camera import CameraModel
 from rig.mesh_rays import cast_camera_rays
-from rig.transforms import invert, make_transform
+from rig.transforms import distance_and_angle, invert, make_transform
 from slam_bridge.colmap_matches import COLMAP_PIXEL_OFFSET, Correspondences, colmap_camera_params
 
 #: A keyframe is resected only with at least this many anchored correspondences.
@@ -185,8 +185,8 @@ class _Anchored:
 
 def _moves(poses: np.ndarray, lidar: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance (m) and angle (deg) of each pose from the LiDAR one."""
-    turn = Rotation.from_matrix(lidar[:, :3, :3].transpose(0, 2, 1) @ poses[:, :3, :3]).magnitude()
-    return np.linalg.norm(poses[:, :3, 3] - lidar[:, :3, 3], axis=1), np.degrees(turn)
+    distance, angle = distance_and_angle(poses, lidar)
+    return distance, np.degrees(angle)
 
 
 def _median(errors: list[np.ndarray]) -> float:

@@ -8,7 +8,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from rig.transforms import invert
+from rig.transforms import distance_and_angle, invert
 from slam_bridge.scene import Keyframe, Scene
 
 
@@ -56,13 +56,11 @@ def redundant_keyframes(keyframes: list[Keyframe], motion_m: float, turn_deg: fl
     earlier kept keyframe (a robot standing still, typically at the start and the end)."""
     kept: list[np.ndarray] = []
     redundant = []
-    cos_turn = np.cos(np.radians(turn_deg))
     for i, k in enumerate(keyframes):
         T = k.T_world_cam
         for K in kept:
-            moved = np.linalg.norm(T[:3, 3] - K[:3, 3])
-            cos_angle = (np.trace(K[:3, :3].T @ T[:3, :3]) - 1) / 2
-            if moved <= motion_m and cos_angle >= cos_turn:
+            moved, angle = distance_and_angle(T, K)
+            if moved <= motion_m and angle <= np.radians(turn_deg):
                 redundant.append(i)
                 break
         else:

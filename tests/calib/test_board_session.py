@@ -14,11 +14,11 @@ import pytest
 from calib.board_session import board_geometry
 from calib.boards import BoardView, ChessboardTarget, detect_chessboard
 from calib.target_based import board_pose, camera_plane
-from calib.targetless import pose_difference
 from rig.calibration import Calibration, load_calibration, save_calibration
 from rig.errors import InputError
 from rig.plane_fit import ransac_plane, refine_plane
 from rig.sim.scenes import BOARD_POSES, CALIBRATION_BOARD
+from rig.transforms import distance_and_angle
 
 from .test_session import _lts, _simulate
 from .test_targetless import perturb
@@ -124,7 +124,8 @@ def test_session_with_boards_end_to_end(tmp_path: Path) -> None:
     extrinsic = json.loads(result.stdout)["extrinsic"]
     assert extrinsic["method"] == "target-based (board planes)"
     estimate = np.asarray(extrinsic["T_cam_lidar"])
-    rot, trans = pose_difference(estimate, truth.T_cam_lidar)
+    trans, angle = distance_and_angle(estimate, truth.T_cam_lidar)
+    rot = np.degrees(angle)
     assert trans < 0.01 and rot < 0.1, (rot, trans)
     assert extrinsic["verdict"] == "ok", extrinsic["reasons"]
     # An ok estimate is what calib.yaml takes (a result that cannot vouch for itself keeps the guess).

@@ -8,10 +8,9 @@ from scipy.spatial.transform import Rotation
 
 from calib.boards import BoardView, ChessboardTarget, detect_chessboard
 from calib.target_based import BoardObservation, board_pose, calibrate_with_board
-from calib.targetless import pose_difference
 from rig.errors import InputError
 from rig.pointcloud_io import PointCloud
-from rig.transforms import invert, make_transform
+from rig.transforms import distance_and_angle, invert, make_transform
 
 from .synthetic import board_poses, board_scan, render_chessboard, sim_camera
 
@@ -54,7 +53,8 @@ def test_virtual_rig_board_extrinsic_within_0p1_deg_and_1_cm() -> None:
     observations = _observations(10, seed=0)
     assert len(observations) >= 8
     result = calibrate_with_board(observations, HALF, _guess())
-    rot, trans = pose_difference(result.T_cam_lidar, T_CAM_LIDAR)
+    trans, angle = distance_and_angle(result.T_cam_lidar, T_CAM_LIDAR)
+    rot = np.degrees(angle)
     assert rot < 0.1 and trans < 0.01, (rot, trans)
     assert result.verdict == "ok", result.reasons
     assert result.extra["plane_rms_m"] < 0.015
@@ -76,7 +76,8 @@ def test_range_noise_along_the_rays_does_not_tilt_the_boards() -> None:
             BoardObservation(T_cam_board, PointCloud(points, np.zeros(len(points), np.float32)), str(i))
         )
     result = calibrate_with_board(observations, HALF, _guess())
-    rot, trans = pose_difference(result.T_cam_lidar, T_CAM_LIDAR)
+    trans, angle = distance_and_angle(result.T_cam_lidar, T_CAM_LIDAR)
+    rot = np.degrees(angle)
     assert rot < 0.08 and trans < 0.005, (rot, trans)
     assert result.verdict == "ok", result.reasons
 
@@ -144,7 +145,8 @@ def test_cli_board_mode(tmp_path) -> None:
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
     assert summary["method"] == "target-based (board planes)"
-    rot, trans = pose_difference(load_calibration(out).T_cam_lidar, T_CAM_LIDAR)
+    trans, angle = distance_and_angle(load_calibration(out).T_cam_lidar, T_CAM_LIDAR)
+    rot = np.degrees(angle)
     assert rot < 0.15 and trans < 0.01, (rot, trans)
 
 

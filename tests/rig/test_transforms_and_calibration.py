@@ -10,6 +10,7 @@ from rig import (
     CameraModel,
     InputError,
     check_rigid,
+    distance_and_angle,
     from_quaternion,
     invert,
     load_calibration,
@@ -23,6 +24,20 @@ from rig import (
 def random_transforms(n: int, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     return make_transform(Rotation.random(n, random_state=seed).as_matrix(), rng.normal(size=(n, 3)))
+
+
+def test_distance_and_angle_between_poses() -> None:
+    T = random_transforms(4)
+    turn = make_transform(Rotation.from_rotvec([0.0, 0.2, 0.0]).as_matrix(), [0.3, 0.0, 0.4])
+    distance, angle = distance_and_angle(T @ turn, T)  # each moved by the same body-frame motion
+    np.testing.assert_allclose(distance, 0.5, atol=1e-12)
+    np.testing.assert_allclose(angle, 0.2, atol=1e-12)
+    single = distance_and_angle(T[0], T[1])
+    assert np.shape(single[0]) == np.shape(single[1]) == ()
+    assert float(single[0]) == pytest.approx(np.linalg.norm(T[0, :3, 3] - T[1, :3, 3]))
+    # Symmetric, and zero for a pose and itself.
+    np.testing.assert_allclose(distance_and_angle(T[1], T[0]), single, atol=1e-12)
+    np.testing.assert_allclose(distance_and_angle(T, T), np.zeros((2, 4)), atol=1e-7)
 
 
 def test_inverse_composes_to_identity() -> None:
