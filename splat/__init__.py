@@ -1,4 +1,5 @@
-"""splat: triangle model, differentiable rasteriser (reference / CPU / CUDA), losses, training, export.
+"""splat: triangle model, differentiable rasteriser (reference / CPU / CUDA), losses, densification
+strategies, training, export.
 
 The run folder layout is in :mod:`splat.run_dir`; ``lts train`` is :mod:`splat.train_cli`.
 

@@ -16,7 +16,9 @@ from splat.raster import RenderOutput
 
 @dataclass
 class LossTerms:
-    """Each term as a 0-d tensor (unweighted) and the weighted total."""
+    """Each term as a 0-d tensor (unweighted) and the weighted total; the names are the keys of
+    ``metrics.jsonl``'s ``loss`` (``depth`` is :func:`accumulated_depth_l1`, ``normal``
+    :func:`normal_loss`)."""
 
     total: Tensor
     l1: Tensor
