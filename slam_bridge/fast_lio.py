@@ -14,7 +14,7 @@ from rig.trajectory import Trajectory
 from rig.trajectory_io import read_trajectory
 from slam_bridge.mapper_bag import find_bag, read_odometry
 from slam_bridge.mesh_cleanup import CleanupReport
-from slam_bridge.point_map import mesh_point_map
+from slam_bridge.point_map import mesh_from_points
 from slam_bridge.slam_dir import write_slam_dir
 
 ODOMETRY_TOPIC = "/Odometry"
@@ -55,6 +55,4 @@ def import_fast_lio(
         else _find_trajectory(folder, Path(bag) if bag else None, odometry_topic)
     )
     cloud = read_point_cloud(_find_map(folder))
-    mesh, report = mesh_point_map(cloud.points, trajectory)
-    write_slam_dir(out_dir, mesh, trajectory)
-    return report
+    return write_slam_dir(out_dir, mesh_from_points(cloud.points, trajectory.translations), trajectory)[1]

@@ -7,7 +7,7 @@ from pathlib import Path
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from rig.trajectory_io import read_trajectory
-from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
+from slam_bridge.mesh_cleanup import CleanupReport
 from slam_bridge.slam_dir import write_slam_dir
 
 MESH_SUFFIXES = (".ply", ".obj", ".glb", ".off", ".stl")
@@ -38,7 +38,4 @@ def import_generic(
     """Import a mesh (PLY/OBJ/...) and a trajectory (TUM/KITTI/EuRoC/4×4) already in one world
     frame, cleaning the mesh as for every import."""
     trajectory = read_trajectory(trajectory_path, trajectory_format, times_path=times_path, rate_hz=rate_hz)
-    raw = load_mesh(mesh_path)
-    mesh, report = clean_mesh(raw.vertices, raw.faces, viewpoints=trajectory.translations)
-    write_slam_dir(out_dir, mesh, trajectory)
-    return report
+    return write_slam_dir(out_dir, load_mesh(mesh_path), trajectory)[1]

@@ -31,8 +31,8 @@ from rig.mesh_io import load_mesh
 from rig.trajectory import Trajectory
 from rig.trajectory_io import read_tum
 from slam_bridge.mapper_bag import find_bag, is_bag, read_odometry, read_registered_points
-from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
-from slam_bridge.point_map import mesh_point_map
+from slam_bridge.mesh_cleanup import CleanupReport
+from slam_bridge.point_map import mesh_from_points
 from slam_bridge.slam_dir import write_slam_dir
 
 #: KITTI's velodyne→camera matrix that ImMesh's ``kitti_log`` conjugates every logged pose with.
@@ -182,13 +182,11 @@ def import_immesh(
         trajectory, trajectory_from = log, str(found.log)
     if found.mesh is not None:
         raw = load_mesh(found.mesh)
-        mesh, cleanup = clean_mesh(raw.vertices, raw.faces, viewpoints=trajectory.translations)
         mesh_from = str(found.mesh)
     else:
-        points = read_registered_points(found.bag, cloud_topic)
-        mesh, cleanup = mesh_point_map(points, trajectory)
+        raw = mesh_from_points(read_registered_points(found.bag, cloud_topic), trajectory.translations)
         mesh_from = f"{found.bag} {cloud_topic}"
-    write_slam_dir(out_dir, mesh, trajectory)
+    _, cleanup = write_slam_dir(out_dir, raw, trajectory)
     return ImmeshReport(
         **asdict(cleanup), mesh_from=mesh_from, trajectory_from=trajectory_from, log_vs_bag_m=agreement
     )

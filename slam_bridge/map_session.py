@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 
 from slam_bridge.fallback_mapper import MapperConfig, run_mapper
-from slam_bridge.mesh_cleanup import clean_mesh
 from slam_bridge.slam_dir import write_slam_dir
 
 
@@ -52,8 +51,7 @@ def map_session(
         config or MapperConfig(),
         progress=None if progress is None else lambda i: progress(i + 1, total),
     )
-    mesh, _ = clean_mesh(result.mesh.vertices, result.mesh.faces, viewpoints=result.trajectory.translations)
-    write_slam_dir(out, mesh, result.trajectory)
+    mesh, _ = write_slam_dir(out, result.mesh, result.trajectory)
     steps = np.diff(result.trajectory.translations, axis=0)
     return MapSummary(
         str(out), result.scans_used, len(result.trajectory), len(mesh.faces),

@@ -11,8 +11,6 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from rig.errors import InputError
-from rig.trajectory import Trajectory
-from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
 
 
 def mesh_from_points(
@@ -41,9 +39,3 @@ def mesh_from_points(
     distance, _ = cKDTree(positions).query(vertices)
     surface.remove_vertices_by_mask(distance > 3 * voxel_m)
     return trimesh.Trimesh(np.asarray(surface.vertices), np.asarray(surface.triangles), process=False)
-
-
-def mesh_point_map(points: np.ndarray, trajectory: Trajectory) -> tuple[trimesh.Trimesh, CleanupReport]:
-    """The cleaned mesh of a point map ``(N, 3)`` recorded along ``trajectory``."""
-    raw = mesh_from_points(points, trajectory.translations)
-    return clean_mesh(raw.vertices, raw.faces, viewpoints=trajectory.translations)

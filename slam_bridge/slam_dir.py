@@ -1,7 +1,7 @@
 """The SLAM output folder every import and the fallback mapper write: ``mesh.ply`` + ``trajectory.tum``.
 
-``mesh.ply`` is a binary PLY in the world (map) frame; ``trajectory.tum`` holds the LiDAR poses
-``T_world_lidar`` in TUM format.
+``mesh.ply`` is a binary PLY in the world (map) frame, cleaned (:func:`clean_mesh`);
+``trajectory.tum`` holds the LiDAR poses ``T_world_lidar`` in TUM format.
 """
 
 from __future__ import annotations
@@ -14,18 +14,24 @@ from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from rig.trajectory import Trajectory
 from rig.trajectory_io import read_tum, write_tum
+from slam_bridge.mesh_cleanup import CleanupReport, clean_mesh
 
 MESH_FILE = "mesh.ply"
 TRAJECTORY_FILE = "trajectory.tum"
 
 
-def write_slam_dir(out_dir: str | Path, mesh: trimesh.Trimesh, trajectory: Trajectory) -> Path:
-    """Write ``out_dir/{mesh.ply, trajectory.tum}``; returns the folder."""
+def write_slam_dir(
+    out_dir: str | Path, mesh: trimesh.Trimesh, trajectory: Trajectory
+) -> tuple[trimesh.Trimesh, CleanupReport]:
+    """Clean a mapper's ``mesh`` (world frame; :func:`clean_mesh`, the trajectory's positions as
+    viewpoints) and write it with ``trajectory`` as ``out_dir/{mesh.ply, trajectory.tum}``.
+    Returns the cleaned mesh and what the cleanup did."""
+    cleaned, report = clean_mesh(mesh.vertices, mesh.faces, viewpoints=trajectory.translations)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    mesh.export(out / MESH_FILE, file_type="ply", encoding="binary")
+    cleaned.export(out / MESH_FILE, file_type="ply", encoding="binary")
     write_tum(trajectory, out / TRAJECTORY_FILE)
-    return out
+    return cleaned, report
 
 
 def load_slam_dir(slam_dir: str | Path) -> tuple[trimesh.Trimesh, Trajectory]:
