@@ -87,7 +87,7 @@ def write_training_scene(root: Path, n_views: int = 6, seed: int = 0) -> Path:
         name = f"{i:06d}"
         cv2.imwrite(str(root / "images" / f"{name}.png"), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
         alpha = out.alpha.numpy()
-        depth = np.where(alpha > 0.5, out.depth.numpy() / np.maximum(alpha, 1e-6), 0.0)
+        depth = np.where(alpha > 0.5, out.accumulated_depth.numpy() / np.maximum(alpha, 1e-6), 0.0)
         v, u = np.nonzero((rng.random(depth.shape) < 0.3) & (depth > 0))  # returns on 30 % of the pixels
         points = CAMERA.unproject(np.column_stack([u, v]).astype(np.float64), depth[v, u])
         np.save(root / LIDAR_DIR / f"{name}.npy", points.astype(np.float32))
