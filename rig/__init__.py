@@ -6,6 +6,7 @@ lazily when opened.
 
 from rig.calibration import Calibration, load_calibration, save_calibration
 from rig.camera import CameraModel
+from rig.deskew import deskewed_points
 from rig.errors import InputError, OutOfRangeError
 from rig.messages import Frame, ImuSample, Scan
 from rig.pointcloud_io import PointCloud, read_point_cloud
@@ -48,6 +49,7 @@ __all__ = [
     "Scan",
     "Trajectory",
     "check_rigid",
+    "deskewed_points",
     "detect_format",
     "distance_and_angle",
     "from_quaternion",
