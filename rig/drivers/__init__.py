@@ -5,7 +5,7 @@ driver modules import their vendor library (pyserial, depthai, pyusb, ouster-sdk
 device is opened or listed.
 """
 
-from rig.drivers.base import DeviceError, Driver, Health, Message, ParseError, now_ns
+from rig.drivers.base import DeviceClockDriver, DeviceError, Driver, Health, Message, ParseError, now_ns
 from rig.drivers.ld06 import Ld06Driver
 from rig.drivers.livox import LivoxDriver
 from rig.drivers.oak import OakDriver, OakPacket, list_oak_devices
@@ -14,6 +14,7 @@ from rig.drivers.rplidar import RplidarDriver
 from rig.drivers.usb import list_usb_devices, reset_oak
 
 __all__ = [
+    "DeviceClockDriver",
     "DeviceError",
     "Driver",
     "Health",

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, field
 from types import TracebackType
 from typing import Any
 
+from rig.clock import ClockEstimator, HostStamper
 from rig.messages import Frame, ImuSample, Scan
 
 Message = Frame | Scan | ImuSample
@@ -107,6 +108,27 @@ class Driver(ABC):
     ) -> None:
         self.stop()
         self.close()
+
+
+class DeviceClockDriver(Driver):
+    """A device with its own clock: its messages get ``t_host`` from an online device→host clock
+    estimate (``clock``, fed by the driver), held back in ``stamper`` until the estimate settles.
+
+    Args:
+        clock: the estimator to feed (a fresh :class:`~rig.clock.ClockEstimator` when None).
+    """
+
+    def __init__(self, name: str, clock: ClockEstimator | None = None) -> None:
+        super().__init__(name)
+        self.clock = clock or ClockEstimator()
+        self.stamper = HostStamper(self.clock)
+
+    def drain(self) -> list[Message]:
+        return self.stamper.flush()
+
+    def clock_estimate(self) -> dict[str, Any] | None:
+        estimate = self.clock.estimate()
+        return None if estimate is None else estimate.as_dict()
 
 
 def now_ns() -> int:

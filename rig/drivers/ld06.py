@@ -2,18 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
-from rig.clock import ClockEstimator, HostStamper
-from rig.drivers.base import Driver, Message
+from rig.clock import ClockEstimator
+from rig.drivers.base import DeviceClockDriver, Message
 from rig.drivers.ld06_protocol import BAUD, PACKET_SIZE, POINTS_PER_PACKET, TIMESTAMP_WRAP_MS, LdStreamParser
 from rig.drivers.scan2d import RevolutionAssembler
 from rig.drivers.serial_link import SerialLink
 
 
-class Ld06Driver(Driver):
+class Ld06Driver(DeviceClockDriver):
     """A LD06-family LiDAR on a serial port; it streams from power-on (no commands).
 
     Scans carry ``t_device`` (the packet timestamps, unwrapped from their 30 s wrap) and ``t_host``
@@ -32,14 +30,12 @@ class Ld06Driver(Driver):
         baud: int | None = None,
         clock: ClockEstimator | None = None,
     ) -> None:
-        super().__init__(name)
+        super().__init__(name, clock)
         if model not in BAUD:
             raise ValueError(f"unknown LDROBOT model {model!r}; expected one of {sorted(BAUD)}")
         self.port = port
         self.link = SerialLink(port, baud or BAUD[model], self.health)
         self.link.on_connect = self._on_connect
-        self.clock = clock or ClockEstimator()
-        self.stamper = HostStamper(self.clock)
         self._reset_stream()
 
     def _reset_stream(self) -> None:
@@ -58,13 +54,6 @@ class Ld06Driver(Driver):
 
     def device_id(self) -> str:
         return self.port
-
-    def drain(self) -> list[Message]:
-        return self.stamper.flush()
-
-    def clock_estimate(self) -> dict[str, Any] | None:
-        est = self.clock.estimate()
-        return None if est is None else est.as_dict()
 
     def _device_ns(self, raw_ms: int) -> int:
         if self._last_raw_ms is not None and raw_ms < self._last_raw_ms - TIMESTAMP_WRAP_MS // 2:

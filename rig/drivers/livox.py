@@ -4,17 +4,16 @@ from __future__ import annotations
 
 import select
 import socket
-from typing import Any
 
 import numpy as np
 
-from rig.clock import ClockEstimator, HostStamper
+from rig.clock import ClockEstimator
 from rig.drivers import livox_protocol as lp
-from rig.drivers.base import DeviceError, Driver, Message, ParseError, now_ns
+from rig.drivers.base import DeviceClockDriver, DeviceError, Message, ParseError, now_ns
 from rig.messages import ImuSample, Scan
 
 
-class LivoxDriver(Driver):
+class LivoxDriver(DeviceClockDriver):
     """Receives a Mid-360's UDP stream on ``host``:``point_port`` / ``imu_port``.
 
     The sensor streams from power-on once configured to send to this host. With ``split="time"``
@@ -38,15 +37,13 @@ class LivoxDriver(Driver):
         split: str = "time",
         clock: ClockEstimator | None = None,
     ) -> None:
-        super().__init__(name)
+        super().__init__(name, clock)
         if split not in ("time", "frame"):
             raise ValueError(f"split must be 'time' or 'frame', got {split!r}")
         self.split = split
         self.host, self.point_port, self.imu_port = host, point_port, imu_port
         self.period_ns = round(scan_period_s * 1e9)
         self.recv_buffer_bytes = recv_buffer_bytes
-        self.clock = clock or ClockEstimator()
-        self.stamper = HostStamper(self.clock)
         self._sockets: list[socket.socket] = []
         self._last_cnt: dict[int, int] = {}
         self._grid0: int | None = None
@@ -76,13 +73,6 @@ class LivoxDriver(Driver):
     def device_id(self) -> str:
         port = self.bound_ports[0] if self._sockets else self.point_port
         return f"livox@{self.host}:{port}"
-
-    def drain(self) -> list[Message]:
-        return self.stamper.flush()
-
-    def clock_estimate(self) -> dict[str, Any] | None:
-        est = self.clock.estimate()
-        return None if est is None else est.as_dict()
 
     def read(self, timeout_s: float = 0.1) -> list[Message]:
         if not self._sockets:

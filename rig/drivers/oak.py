@@ -17,8 +17,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from rig.clock import ClockEstimator, HostStamper
-from rig.drivers.base import DeviceError, Driver, Message, now_ns
+from rig.clock import ClockEstimator
+from rig.drivers.base import DeviceClockDriver, DeviceError, Message, now_ns
 from rig.messages import Frame, ImuSample
 from rig.native_output import native_output_to_stderr
 
@@ -130,7 +130,7 @@ class DepthaiSource:
             self._pipeline = None
 
 
-class OakDriver(Driver):
+class OakDriver(DeviceClockDriver):
     """An OAK (or anything speaking :class:`OakSource`): frames and IMU samples, stamped.
 
     ``t_host`` is depthai's host-synced stamp when the source gives one, else the device stamp
@@ -141,10 +141,8 @@ class OakDriver(Driver):
     kind = "oak"
 
     def __init__(self, name: str, source: OakSource, clock: ClockEstimator | None = None) -> None:
-        super().__init__(name)
+        super().__init__(name, clock)
         self.source = source
-        self.clock = clock or ClockEstimator()
-        self.stamper = HostStamper(self.clock)
         self._device_id = ""
 
     @classmethod
@@ -165,13 +163,6 @@ class OakDriver(Driver):
 
     def device_id(self) -> str:
         return self._device_id
-
-    def drain(self) -> list[Message]:
-        return self.stamper.flush()
-
-    def clock_estimate(self) -> dict[str, Any] | None:
-        est = self.clock.estimate()
-        return None if est is None else est.as_dict()
 
     def read(self, timeout_s: float = 0.1) -> list[Message]:
         out: list[Message] = []
