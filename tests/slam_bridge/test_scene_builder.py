@@ -286,3 +286,27 @@ def test_keyframes_by_motion(quick_room: Path, gt_slam_dir: Path, tmp_path: Path
     steps = np.linalg.norm(np.diff(centres, axis=0), axis=1)
     assert json.loads(by_motion.stdout)["keyframes"] == len(scene.keyframes) >= 2
     assert (steps >= 0.2).sum() >= len(steps) - 1  # all but turn-triggered ones moved 20 cm
+
+
+def test_keyframe_lidar_keeps_the_scans_in_each_window_and_the_points_in_view() -> None:
+    from rig.calibration import Calibration
+    from rig.messages import Scan
+    from rig.trajectory import Trajectory
+    from slam_bridge.keyframe_lidar import keyframe_lidar
+    from slam_bridge.scene import Keyframe
+
+    camera = CameraModel("pinhole", 32, 24, [[30, 0, 15.5], [0, 30, 11.5], [0, 0, 1]], [])
+    calibration = Calibration(camera, np.eye(4), 0.1)  # LiDAR stamps + 0.1 s = camera time
+    trajectory = Trajectory.from_poses(np.array([0, 5 * 10**9]), np.stack([np.eye(4), np.eye(4)]))
+    keyframes = [Keyframe("a", 10**9, np.eye(4), "train"), Keyframe("b", 2 * 10**9, np.eye(4), "train")]
+
+    def scan(t_s: float, z: float) -> Scan:  # one point ahead (in view), one behind the camera
+        points = np.array([[0.0, 0.0, z], [0.0, 0.0, -z]])
+        return Scan(points, np.zeros(2), np.zeros(2), round(t_s * 1e9), None)
+
+    # Camera times 0.45 (before a's window [0.5, 2]), 1.6 (both) and 2.4 s (b's window [1, 2.5] only).
+    scans = [scan(0.35, 1.0), scan(1.5, 2.0), scan(2.3, 3.0)]
+    points = keyframe_lidar(scans, trajectory, calibration, keyframes, camera, 0.5)
+    assert points[0].dtype == np.float32
+    np.testing.assert_array_equal(points[0], [[0, 0, 2]])
+    np.testing.assert_array_equal(points[1], [[0, 0, 2], [0, 0, 3]])
