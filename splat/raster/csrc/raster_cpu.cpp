@@ -14,6 +14,7 @@
 
 #include "bins.h"
 #include "cpu_ops.h"
+#include "pixel_io.h"
 #include "triangle_math.h"
 
 namespace {
@@ -124,20 +125,9 @@ void forward_tile(int tile, const Bins& b, const T* params, T* rgb, T* depth, T*
   }
   for (int y = 0; y < th; ++y) {
     for (int x = 0; x < tw; ++x) {
-      const PixelState<T>& s = px[y * kTile + x];
       const int64_t o = static_cast<int64_t>(ty0 + y) * b.width + (tx0 + x);
-      for (int c = 0; c < 3; ++c) {
-        rgb[3 * o + c] = s.rgb[c];
-        normal[3 * o + c] = s.normal[c];
-      }
-      depth[o] = s.depth_sum;
-      alpha[o] = s.weight_sum;
-      median[o] = s.median;
-      distortion[o] = s.distortion();
-      dominant[o] = s.best;
-      transmittance[o] = s.transmittance;
-      last_entry[o] = s.last_entry;
-      median_entry[o] = s.median_entry;
+      write_pixel(px[y * kTile + x], o, rgb, depth, alpha, normal, median, distortion, dominant,
+                  transmittance, last_entry, median_entry);
     }
   }
 }
@@ -159,22 +149,8 @@ void backward_tile(int tile, const Bins& b, const T* params, const T* alpha, con
         continue;
       }
       const int64_t o = static_cast<int64_t>(ty0 + y) * b.width + (tx0 + x);
-      for (int c = 0; c < 3; ++c) {
-        g.d_rgb[c] = d_rgb[3 * o + c];
-        g.d_normal[c] = d_normal[3 * o + c];
-      }
-      g.d_depth = d_depth[o];
-      g.d_alpha = d_alpha[o];
-      g.d_median = d_median[o];
-      g.d_distortion = d_distortion[o];
-      g.weight_sum = alpha[o];
-      const bool hit = alpha[o] > T(0);
-      g.depth_mean = hit ? depth[o] / alpha[o] : T(0);
-      g.depth_m2 = hit ? distortion[o] / alpha[o] : T(0);
-      g.transmittance = transmittance[o];
-      g.suffix = T(0);
-      g.median_entry = median_entry[o];
-      g.last_entry = last_entry[o];
+      read_pixel(g, o, alpha, depth, distortion, transmittance, last_entry, median_entry, d_rgb,
+                 d_depth, d_alpha, d_normal, d_median, d_distortion);
     }
   }
   // Pixels join the back-to-front sweep at their last composited entry: visit them in that order.

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "bins.h"
+#include "pixel_io.h"
 #include "triangle_math.h"
 #include "triangle_setup.h"
 
@@ -138,19 +139,8 @@ __global__ void __launch_bounds__(kTilePixels)
     }
   }
   if (!inside) return;
-  const int64_t o = static_cast<int64_t>(y) * b.width + x;
-  for (int c = 0; c < 3; ++c) {
-    rgb[3 * o + c] = s.rgb[c];
-    normal[3 * o + c] = s.normal[c];
-  }
-  depth[o] = s.depth_sum;
-  alpha[o] = s.weight_sum;
-  median[o] = s.median;
-  distortion[o] = s.distortion();
-  dominant[o] = s.best;
-  transmittance[o] = s.transmittance;
-  last_entry[o] = s.last_entry;
-  median_entry[o] = s.median_entry;
+  write_pixel(s, static_cast<int64_t>(y) * b.width + x, rgb, depth, alpha, normal, median,
+              distortion, dominant, transmittance, last_entry, median_entry);
 }
 
 template <typename T>
@@ -170,23 +160,9 @@ __global__ void __launch_bounds__(kTilePixels)
   PixelGrad<T> g;
   g.last_entry = -1;
   if (inside) {
-    const int64_t o = static_cast<int64_t>(y) * b.width + x;
-    for (int c = 0; c < 3; ++c) {
-      g.d_rgb[c] = d_rgb[3 * o + c];
-      g.d_normal[c] = d_normal[3 * o + c];
-    }
-    g.d_depth = d_depth[o];
-    g.d_alpha = d_alpha[o];
-    g.d_median = d_median[o];
-    g.d_distortion = d_distortion[o];
-    g.weight_sum = alpha[o];
-    const bool hit = alpha[o] > T(0);
-    g.depth_mean = hit ? depth[o] / alpha[o] : T(0);
-    g.depth_m2 = hit ? distortion[o] / alpha[o] : T(0);
-    g.transmittance = transmittance[o];
-    g.suffix = T(0);
-    g.median_entry = median_entry[o];
-    g.last_entry = last_entry[o];
+    read_pixel(g, static_cast<int64_t>(y) * b.width + x, alpha, depth, distortion, transmittance,
+               last_entry, median_entry, d_rgb, d_depth, d_alpha, d_normal, d_median,
+               d_distortion);
   }
   const int lane = threadIdx.x % 32, warp = threadIdx.x / 32;
   const int64_t begin = b.tile_offsets[tile], end = b.tile_offsets[tile + 1];
