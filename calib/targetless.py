@@ -135,7 +135,7 @@ def _sample(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bilinear samples of an undistorted working ``image`` (camera matrix ``K``) at the pinhole
     projections of ``points`` ``(N, 3)``, and the mask ``(N,)`` of points that land in it."""
-    p = points @ T[:3, :3].T + T[:3, 3]
+    p = transform_points(T, points)
     z = np.where(p[:, 2] > 1e-6, p[:, 2], np.nan)
     u = K[0, 0] * p[:, 0] / z + K[0, 2]
     v = K[1, 1] * p[:, 1] / z + K[1, 2]

@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.mesh_rays import mesh_raycaster
-from rig.transforms import invert
+from rig.transforms import invert, transform_points
 
 DEFAULT_SAMPLES = 200_000
 
@@ -83,7 +83,7 @@ def frustum_mask(
     points = np.asarray(points, dtype=np.float64)
     inside = np.zeros(len(points), dtype=bool)
     for T_cam_world in invert(np.asarray(poses_world_cam)):
-        p = points @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]
+        p = transform_points(T_cam_world, points)
         depth_ok = (p[:, 2] > near) & (p[:, 2] < far) & ~inside
         if depth_ok.any():
             candidates = np.flatnonzero(depth_ok)

@@ -7,6 +7,8 @@ import io
 import cv2
 import numpy as np
 
+from rig.transforms import transform_points
+
 HOLE_RED = np.array([0.93, 0.11, 0.14])
 MISSED_COLOUR = "#7b2cbf"
 #: Colour map of distances and errors (perceptually uniform, dark = good).
@@ -85,11 +87,6 @@ def colorbar(vmax: float, label: str, cmap: str = ERROR_CMAP) -> bytes:
     return figure_png(fig)
 
 
-def _display(points: np.ndarray, T_display_world: np.ndarray) -> np.ndarray:
-    """Points ``(N, 3)`` in the z-up display frame."""
-    return points @ T_display_world[:3, :3].T + T_display_world[:3, 3]
-
-
 def _subsample(count: int, limit: int, seed: int = 0) -> np.ndarray:
     if count <= limit:
         return np.arange(count)
@@ -109,8 +106,8 @@ def point_cloud_figure(points, max_points: int = 50_000) -> bytes:
     plt = _pyplot()
     from matplotlib import cm, colors
 
-    rec = _display(points.reconstructed, points.T_display_world)
-    gt = _display(points.ground_truth, points.T_display_world)
+    rec = transform_points(points.T_display_world, points.reconstructed)
+    gt = transform_points(points.T_display_world, points.ground_truth)
     cut = _below_ceiling(gt)
     missed = points.to_reconstruction >= points.threshold_m
     norm = colors.Normalize(0, 2 * points.threshold_m)
@@ -189,14 +186,14 @@ def physics_figure(drops, background=None) -> bytes:
     over ``background`` ground-truth points ``(N, 3)`` (optional), and a histogram of the signed
     height error."""
     plt = _pyplot()
-    start = _display(drops.start, drops.T_display_world)
+    start = transform_points(drops.T_display_world, drops.start)
     valid = ~drops.gt_fell
     fell = valid & drops.rec_fell
     rested = valid & ~drops.rec_fell
     signed = drops.rec_height - drops.gt_height
     fig, (ax, hist) = plt.subplots(1, 2, figsize=(12, 4.8), gridspec_kw={"width_ratios": [1.5, 1]})
     if background is not None and len(background):
-        bg = _display(background, drops.T_display_world)
+        bg = transform_points(drops.T_display_world, background)
         bg = bg[bg[:, 2] < _below_ceiling(bg)]
         bg = bg[_subsample(len(bg), 40_000, 2)]
         ax.scatter(bg[:, 0], bg[:, 1], s=0.6, c="#c9ced8", linewidths=0, rasterized=True)

@@ -8,7 +8,7 @@ import numpy as np
 
 from rig.errors import InputError
 from rig.trajectory import Trajectory
-from rig.transforms import make_transform
+from rig.transforms import make_transform, transform_points
 
 
 def _matched(source: np.ndarray, target: np.ndarray, item: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -91,7 +91,7 @@ def absolute_trajectory_error(
     ref_poses = reference.interpolate(estimate.t_ns[covered])
     ref = ref_poses[:, :3, 3]
     T = pose_alignment(estimate.poses[covered], ref_poses) if use_orientation else umeyama_alignment(est, ref)
-    errors = np.linalg.norm(est @ T[:3, :3].T + T[:3, 3] - ref, axis=1)
+    errors = np.linalg.norm(transform_points(T, est) - ref, axis=1)
     return AbsoluteTrajectoryError(
         float(np.sqrt(np.mean(errors**2))), float(errors.mean()), float(errors.max()), int(covered.sum()), T
     )

@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 
 from rig.camera import CameraModel
 from rig.mesh_rays import cast_camera_rays
-from rig.transforms import distance_and_angle, invert, make_transform
+from rig.transforms import distance_and_angle, invert, make_transform, transform_points
 from slam_bridge.colmap_matches import COLMAP_PIXEL_OFFSET, Correspondences, colmap_camera_params
 
 #: A keyframe is resected only with at least this many anchored correspondences.
@@ -97,8 +97,7 @@ def reprojection_errors(
 ) -> np.ndarray:
     """Pixel distance ``(N,)`` between ``uv`` and the projection of world ``points``; NaN behind
     the camera or for NaN points."""
-    T_cam_world = invert(T_world_cam)
-    projected = camera.project(points @ T_cam_world[:3, :3].T + T_cam_world[:3, 3])
+    projected = camera.project(transform_points(invert(T_world_cam), points))
     return np.linalg.norm(projected - uv, axis=1)
 
 

@@ -9,7 +9,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from rig.camera import CameraModel
-from rig.transforms import make_transform
+from rig.transforms import make_transform, transform_points
 
 #: Texture pixels per board square.
 PIXELS_PER_SQUARE = 48
@@ -129,7 +129,7 @@ def board_scan(
     wall = np.column_stack(
         [rng.uniform(x0 - 2, x1 + 2, 2000), rng.uniform(y0 - 2, y1 + 2, 2000), np.full(2000, 1.5)]
     )
-    pts = np.vstack([board, wall]) @ T_lidar_board[:3, :3].T + T_lidar_board[:3, 3]
+    pts = transform_points(T_lidar_board, np.vstack([board, wall]))
     rng_dir = pts / np.linalg.norm(pts, axis=1, keepdims=True)
     return pts + rng_dir * rng.normal(0, noise_m, (len(pts), 1))
 

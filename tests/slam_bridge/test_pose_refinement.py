@@ -7,7 +7,7 @@ import pytest
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from rig import CameraModel, make_transform
+from rig import CameraModel, invert, make_transform, transform_points
 from rig.mesh_rays import mesh_raycaster
 from slam_bridge.colmap_matches import Correspondences
 from slam_bridge.pose_refinement import cast_anchors, refine_keyframe_poses, restore_slow_errors
@@ -50,8 +50,7 @@ def synthetic_matches(mesh: trimesh.Trimesh, poses: np.ndarray, pixel_noise: flo
     points, _ = trimesh.sample.sample_surface(mesh, 20_000, seed=0)
     seen = []
     for T in poses:
-        local = (points - T[:3, 3]) @ T[:3, :3]
-        uv = CAMERA.project(local)
+        uv = CAMERA.project(transform_points(invert(T), points))
         inside = np.isfinite(uv).all(axis=1) & CAMERA.in_image(np.nan_to_num(uv, nan=-1.0), margin=2)
         hit = cast_anchors(raycaster, CAMERA, T, np.where(inside[:, None], uv, 0.0))
         visible = inside & (np.linalg.norm(hit - points, axis=1) < 1e-3)  # not hidden by the box
