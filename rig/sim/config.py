@@ -7,9 +7,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from rig.camera import CameraModel
+from rig.data_file import load_data_file
 from rig.errors import InputError
 
 #: What ``--quick`` changes: a short run at a small image size, for tests and smoke checks.
@@ -109,10 +109,7 @@ class SimConfig:
     def from_scene_yaml(cls, path: str | Path) -> SimConfig:
         """The configuration stored under ``config:`` in a ``scene.yaml``."""
         path = Path(path)
-        try:
-            data = yaml.safe_load(path.read_text())
-        except (OSError, yaml.YAMLError) as exc:
-            raise InputError(f"cannot read scene file ({exc})", path=path) from None
+        data = load_data_file(path, "YAML", "scene file")
         config = data.get("config") if isinstance(data, dict) else None
         if not isinstance(config, dict):
             raise InputError("missing", path=path, field="config")
