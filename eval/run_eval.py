@@ -325,13 +325,15 @@ def evaluate_run(
     device: str = "cpu",
     physics: bool = True,
     log: Callable[[str], None] = lambda _: None,
+    scene: Scene | None = None,
 ) -> RunEvaluation:
     """Evaluate a finished run (see the module docstring); ``gt`` is a virtual-rig ground-truth
-    folder, its parent or its ``mesh.ply`` (``None``: no geometric or physics metrics)."""
+    folder, its parent or its ``mesh.ply`` (``None``: no geometric or physics metrics); ``scene``:
+    the run's scene when it is already loaded (its files are then not read again)."""
     run_dir = Path(run_dir)
     if threshold_m <= 0:
         raise InputError(f"threshold must be positive, got {threshold_m}", field="threshold")
-    scene = load_scene(layout.scene_of(run_dir))
+    scene = scene if scene is not None else load_scene(layout.scene_of(run_dir))
     model = load_model(layout.model_path(run_dir), device)
     tests = scene.split("test")
     if not tests:

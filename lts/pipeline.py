@@ -25,11 +25,13 @@ import json
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from lts.stages import StageRecord, StageRunner
 from rig.errors import InputError
+from slam_bridge.scene import FORMAT_VERSION, Scene, load_scene
 
 if TYPE_CHECKING:
     from slam_bridge.prepare_config import PrepareConfig
@@ -90,15 +92,18 @@ def reconstruct(o: ReconstructOptions, log: Callable[[str], None] = print) -> Re
         lambda: build_scene(o.session, calib, slam, scene, keyframes, log),
     )  # fmt: skip
 
+    loaded_scene = cache(lambda: load_scene(scene))  # training and evaluation read its files once
     config = train_config(o)
     stages.run(
         "train", ["lts train", *train_key(o)], [scene], train / "model.pt",
-        lambda: train_run(scene, train, config, scene_changed=prepared.status == "ran", log=log),
+        lambda: train_run(loaded_scene(), train, config, scene_changed=prepared.status == "ran", log=log),
     )  # fmt: skip
 
     key = ["lts eval", *(["--gt", str(o.gt)] if o.gt is not None else [])]
     inputs = [scene, *(train / name for name in EVALUATED_FILES), *([o.gt] if o.gt is not None else [])]
-    stages.run("evaluate", key, inputs, train / "eval.json", lambda: evaluate(train, o.gt, log))
+    stages.run(
+        "evaluate", key, inputs, train / "eval.json", lambda: evaluate(train, loaded_scene(), o.gt, log)
+    )  # fmt: skip
     return ReconstructResult(o.out, stages.records, json.loads((train / "eval.json").read_text()))
 
 
@@ -165,8 +170,9 @@ def prepare_config(o: ReconstructOptions) -> PrepareConfig:
 
 
 def prepare_key(config: PrepareConfig) -> list[str]:
-    """The options of ``config`` that the app layer sets, as ``lts prepare`` takes them."""
-    key = ["--keyframe-interval", str(config.keyframe_interval_s)]
+    """The options of ``config`` that the app layer sets, as ``lts prepare`` takes them, and the
+    scene folder's format (a folder of an older format is made again)."""
+    key = [f"scene format {FORMAT_VERSION}", "--keyframe-interval", str(config.keyframe_interval_s)]
     return key + (["--sparse-points"] if config.sparse_points else [])
 
 
@@ -196,7 +202,7 @@ def train_config(o: ReconstructOptions) -> TrainConfig:
 
 
 def train_run(
-    scene: Path, run_dir: Path, config: TrainConfig, scene_changed: bool, log: Callable[[str], None]
+    scene: Scene, run_dir: Path, config: TrainConfig, scene_changed: bool, log: Callable[[str], None]
 ) -> None:
     """The train stage: continues an interrupted run made with the same options on the same scene;
     a run made otherwise is set aside as ``train.previous-N`` and training starts afresh."""
@@ -218,11 +224,11 @@ def train_run(
     train(scene, run_dir, config, resume=resume)
 
 
-def evaluate(run_dir: Path, gt: Path | None, log: Callable[[str], None]) -> None:
-    """The evaluate stage: ``eval.json`` and ``report.html`` in the training run."""
+def evaluate(run_dir: Path, scene: Scene, gt: Path | None, log: Callable[[str], None]) -> None:
+    """The evaluate stage: ``eval.json`` and ``report.html`` in the training run of ``scene``."""
     from eval.report import write_report
     from eval.run_eval import evaluate_run, write_eval_json
 
-    evaluation = evaluate_run(run_dir, gt, log=lambda message: log(f"  {message}"))
+    evaluation = evaluate_run(run_dir, gt, log=lambda message: log(f"  {message}"), scene=scene)
     write_eval_json(evaluation)
     write_report(evaluation)

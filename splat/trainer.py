@@ -107,9 +107,13 @@ class Trainer:
     """One training run of ``config`` on a scene folder into ``run_dir``."""
 
     def __init__(
-        self, scene_dir: str | Path, run_dir: str | Path, config: TrainConfig, log: Callable = console.print
+        self,
+        scene: str | Path | Scene,
+        run_dir: str | Path,
+        config: TrainConfig,
+        log: Callable = console.print,
     ):
-        self.scene: Scene = load_scene(scene_dir)
+        self.scene: Scene = scene if isinstance(scene, Scene) else load_scene(scene)
         self.run_dir = Path(run_dir)
         self.config = config
         self.log = log
@@ -373,7 +377,7 @@ def _export(model: TriangleModel, views: list[View], camera, run_dir: Path) -> d
 
 
 def train(
-    scene_dir: str | Path,
+    scene: str | Path | Scene,
     run_dir: str | Path,
     config: TrainConfig,
     *,
@@ -381,8 +385,9 @@ def train(
     progress: bool = True,
     log: Callable = console.print,
 ) -> TrainResult:
-    """Train ``config`` on the scene folder ``scene_dir`` into ``run_dir`` (``resume``: continue
-    from ``run_dir``'s last checkpoint, bit for bit on the CPU)."""
-    trainer = Trainer(scene_dir, run_dir, config, log)
+    """Train ``config`` on ``scene`` (a scene folder, or a :class:`Scene` already loaded from one,
+    whose files are then not read again) into ``run_dir`` (``resume``: continue from ``run_dir``'s
+    last checkpoint, bit for bit on the CPU)."""
+    trainer = Trainer(scene, run_dir, config, log)
     trainer.prepare(resume)
     return trainer.run(progress)
