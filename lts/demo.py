@@ -119,13 +119,19 @@ def run_demo(
 ) -> tuple[ReconstructResult, list[StageRecord]]:
     """Simulate, record and reconstruct; returns the reconstruction and the demo's own stages."""
     sim_dir, session, gt = out / "sim", out / "session.mcap", out / "ground_truth"
-    stages = StageRunner(out, ("simulate", "record"), log)
+    stages = StageRunner(out, ("simulate", "record", "ground truth"), log)
     key = ["lts sim", str(sim_dir), "--preset", "room", *(["--quick"] if quick else [])]
     stages.run("simulate", key, [], sim_dir / "session.mcap", lambda: simulate_room(sim_dir, quick))
     key = ["rig record", "--sim", str(sim_dir), "--out", str(session)]
     stages.run("record", key, [sim_dir], session, lambda: record_through_mock_devices(sim_dir, session))
-    shift = shifted_ground_truth(sim_dir, session, gt)
-    log(f"[ground truth] trajectory shifted by {shift / 1e9:.3f} s onto the recording's clock")
+
+    def move_ground_truth() -> None:
+        shift = shifted_ground_truth(sim_dir, session, gt)
+        log(f"  trajectory shifted by {shift / 1e9:.3f} s onto the recording's clock")
+
+    key = ["the simulation's ground truth on the recording's clock"]
+    inputs = [sim_dir / "ground_truth", session]
+    stages.run("ground truth", key, inputs, gt / "calib.yaml", move_ground_truth)
     options = ReconstructOptions(
         session, out / "run", init=sim_dir / "ground_truth" / "calib.yaml", gt=gt,
         # 3 s at one keyframe per 0.5 s would leave no keyframe to test on.

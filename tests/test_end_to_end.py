@@ -42,6 +42,7 @@ def test_demo_quick_reports_the_contract_metrics_within_bounds(demo):
     assert set(summary["stages"]) == {
         "simulate",
         "record",
+        "ground truth",
         "calibrate",
         "slam",
         "prepare",
@@ -53,6 +54,16 @@ def test_demo_quick_reports_the_contract_metrics_within_bounds(demo):
     assert summary["chamfer_m"] < 0.08
     assert summary["psnr"] > 14  # 160x120, 3 s: a third of the keyframes stand still
     assert (out / "run" / "train" / "report.html").is_file()
+
+
+def test_demo_rerun_skips_every_stage_and_reports_the_same_metrics(demo):
+    out, summary = demo
+    done = _lts("demo", "--quick", "--json", "--out", out, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    again = json.loads(done.stdout.strip().splitlines()[-1])
+    assert {s["status"] for s in again["stages"].values()} == {"skipped"}, again["stages"]
+    for key in ("psnr", "fscore", "chamfer_m", "n_triangles"):
+        assert again[key] == summary[key], key
 
 
 def test_reconstruct_killed_during_training_resumes_without_redoing_stages(demo, tmp_path):
