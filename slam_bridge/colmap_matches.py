@@ -42,12 +42,18 @@ def match_keyframes(images_dir: Path, workspace: Path, camera: CameraModel, name
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
     reader.camera_params = ",".join(str(v) for v in colmap_camera_params(camera))
+    # One extraction thread: COLMAP numbers the images in the order their features are written,
+    # and with several threads that order (hence each pair's direction and the verification's
+    # random draws) changed from run to run.
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.num_threads = 1
     pycolmap.extract_features(
         database,
         images_dir,
         image_names=names,
         camera_mode=pycolmap.CameraMode.SINGLE,
         reader_options=reader,
+        extraction_options=extraction,
         device=pycolmap.Device.cpu,
     )
     # Reproducible matches (the refined poses and sparse points differed from run to run): exact
