@@ -24,6 +24,8 @@ from rig.version import package_version
 console = Console(stderr=True, soft_wrap=True)
 
 EXIT_BAD_INPUT = 2
+#: Usage errors: click's, and those of the copy of click that typer >= 0.29 carries.
+_USAGE_ERRORS = (click.ClickException, getattr(typer, "TyperException", click.ClickException))
 
 #: The real stdout while a ``--json`` command runs with file descriptor 1 pointed at stderr.
 _json_stream: TextIO | None = None
@@ -70,8 +72,8 @@ def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
         except KeyboardInterrupt:
             console.print("interrupted")
             sys.exit(130)
-        except click.ClickException as exc:  # usage errors carry their own message and exit code
-            exc.show()
+        except _USAGE_ERRORS as exc:  # they carry their own message and exit code
+            console.print(f"error: {exc.format_message()}", highlight=False, markup=False)
             sys.exit(exc.exit_code)
         except OSError as exc:  # a full disk, a vanished folder: say which file, no traceback
             where = f"{exc.filename}: " if exc.filename else ""
