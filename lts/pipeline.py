@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 
 from lts.stages import StageRecord, StageRunner
 from rig.errors import InputError
+from slam_bridge.prepare_config import DEFAULT_MAX_SIZE
 from slam_bridge.scene import FORMAT_VERSION, Scene, load_scene
 
 if TYPE_CHECKING:
@@ -56,6 +57,8 @@ class ReconstructOptions:
     device: str = "cpu"
     seed: int = 0
     keyframe_interval_s: float | None = None
+    max_size: int = DEFAULT_MAX_SIZE
+    downscale: int = 1
 
 
 @dataclass
@@ -166,13 +169,16 @@ def prepare_config(o: ReconstructOptions) -> PrepareConfig:
     from slam_bridge.prepare_config import PrepareConfig
 
     interval = {} if o.keyframe_interval_s is None else {"keyframe_interval_s": o.keyframe_interval_s}
-    return PrepareConfig(sparse_points=o.method == "tsplus", **interval)
+    return PrepareConfig(
+        sparse_points=o.method == "tsplus", max_size=o.max_size, downscale=o.downscale, **interval
+    )
 
 
 def prepare_key(config: PrepareConfig) -> list[str]:
     """The options of ``config`` that the app layer sets, as ``lts prepare`` takes them, and the
     scene folder's format (a folder of an older format is made again)."""
     key = [f"scene format {FORMAT_VERSION}", "--keyframe-interval", str(config.keyframe_interval_s)]
+    key += ["--max-size", str(config.max_size), "--downscale", str(config.downscale)]
     return key + (["--sparse-points"] if config.sparse_points else [])
 
 

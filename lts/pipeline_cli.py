@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import typer
 
 from rig.cli_support import console, emit_json
+from slam_bridge.prepare_cli import DOWNSCALE_OPTION, MAX_SIZE_OPTION
 
 if TYPE_CHECKING:
     from lts.pipeline import ReconstructResult
@@ -93,6 +94,8 @@ def reconstruct_command(
     keyframe_interval: float | None = typer.Option(
         None, "--keyframe-interval", help="Seconds between keyframes (lts prepare's default: 0.5)."
     ),
+    max_size: int = MAX_SIZE_OPTION,
+    downscale: int = DOWNSCALE_OPTION,
     json_out: bool = typer.Option(
         False, "--json", help="Print the metrics and per-stage seconds as one JSON object."
     ),
@@ -106,8 +109,9 @@ def reconstruct_command(
     from lts.pipeline import ReconstructOptions, reconstruct
 
     options = ReconstructOptions(
-        session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval
-    )
+        session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval,
+        max_size=max_size, downscale=downscale,
+    )  # fmt: skip
     result, _ = _run_stages(lambda: (reconstruct(options, _log), []))
     summary = _summary(result)
     _print_table(summary)

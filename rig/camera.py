@@ -6,6 +6,7 @@ x right, y down, z forward.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -163,6 +164,17 @@ class CameraModel:
             "pinhole", self.width, self.height, self.K if K_new is None else K_new, np.zeros(0)
         )
 
+    def scaled(self, width: int, height: int) -> CameraModel:
+        """This camera for its images resized to ``width`` x ``height`` (the same field of view).
+
+        Focal lengths scale with the size; the principal point scales about the image corner,
+        which lies half a pixel before the first pixel centre: ``c' = (c + 0.5) s - 0.5``.
+        """
+        sx, sy = width / self.width, height / self.height
+        K = self.K * [[sx], [sy], [1.0]]
+        K[:2, 2] = (self.K[:2, 2] + 0.5) * [sx, sy] - 0.5
+        return CameraModel(self.model, width, height, K, self.dist)
+
     def undistort_maps(self, target: CameraModel) -> tuple[np.ndarray, np.ndarray]:
         """``cv2.remap`` maps ``(H, W)`` float32 that resample this camera's images into ``target``
         (a distortion-free pinhole model, e.g. from :meth:`undistorted`)."""
@@ -181,15 +193,26 @@ class CameraModel:
         target: CameraModel | None = None,
         interpolation: int = cv2.INTER_LINEAR,
     ) -> np.ndarray:
-        """Resample ``image`` ``(H, W[, C])`` into ``target`` (default :meth:`undistorted`)."""
+        """Resample ``image`` ``(H, W[, C])`` into ``target`` (default :meth:`undistorted`).
+
+        ``cv2.INTER_AREA`` averages over each target pixel's area: the image is remapped (bilinear)
+        into ``target`` enlarged by the whole factor that brings it up to this camera's size, then
+        each block of that many pixels squared is averaged. A target no smaller than this camera
+        is remapped bilinearly."""
         target = target or self.undistorted()
         if image.shape[:2] != (self.height, self.width):
             raise InputError(
                 f"image is {image.shape[1]}x{image.shape[0]}, camera expects {self.width}x{self.height}",
                 field="image",
             )
-        map_x, map_y = self.undistort_maps(target)
-        return cv2.remap(image, map_x, map_y, interpolation, borderMode=cv2.BORDER_CONSTANT)
+        factor = 1
+        if interpolation == cv2.INTER_AREA:
+            interpolation = cv2.INTER_LINEAR
+            factor = math.ceil(max(self.width / target.width, self.height / target.height) - 1e-9)
+        fine = target.scaled(target.width * factor, target.height * factor) if factor > 1 else target
+        map_x, map_y = self.undistort_maps(fine)
+        out = cv2.remap(image, map_x, map_y, interpolation, borderMode=cv2.BORDER_CONSTANT)
+        return out if fine is target else cv2.resize(out, target.size, interpolation=cv2.INTER_AREA)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``camera:`` block of ``calib.yaml``."""

@@ -66,8 +66,9 @@ def read_normal_map(folder: Path, frame_index: int, t_ns: int, camera: CameraMod
 
 
 def undistort_normals(normals: np.ndarray, camera: CameraModel, target: CameraModel) -> np.ndarray:
-    """Resample a normal map ``(H, W, 3)`` into the undistorted camera (nearest pixel, so normals are
-    not blended across edges) and re-normalise; empty pixels stay zero."""
+    """Resample a normal map ``(H, W, 3)`` into the undistorted camera ``target`` (of any size;
+    nearest pixel, so normals are not blended across edges) and re-normalise; empty pixels stay
+    zero."""
     resampled = camera.undistort_image(normals, target, interpolation=cv2.INTER_NEAREST)
     norms = np.linalg.norm(resampled, axis=-1, keepdims=True)
     return np.divide(resampled, norms, out=np.zeros_like(resampled), where=norms > 1e-6).astype(np.float32)
@@ -78,16 +79,17 @@ def write_keyframe_normals(
     keyframes: list[Keyframe],
     frame_indices: np.ndarray,
     camera: CameraModel,
+    target: CameraModel,
     raycaster,
     normals_dir: Path | None,
     done: Callable[[], None],
 ) -> None:
-    """Save each keyframe's normal prior ``(H, W, 3)`` float32 in the undistorted ``camera``'s image
-    as ``out/normals/NAME.npy``: the maps in ``normals_dir`` (of the session's ``camera``, found by
-    the keyframes' positions ``frame_indices`` ``(K,)`` on the image topic and their stamps) when
-    given, else the SLAM mesh's normals through ``raycaster``; ``done()`` after each."""
+    """Save each keyframe's normal prior ``(H, W, 3)`` float32 in the image of the scene's camera
+    ``target`` as ``out/normals/NAME.npy``: the maps in ``normals_dir`` (of the session's
+    ``camera``, found by the keyframes' positions ``frame_indices`` ``(K,)`` on the image topic and
+    their stamps) when given, else the SLAM mesh's normals through ``raycaster``; ``done()`` after
+    each."""
     (out / "normals").mkdir(parents=True, exist_ok=True)
-    target = camera.undistorted()
     rays_cam = pixel_rays(target)
     for index, keyframe in zip(frame_indices, keyframes, strict=True):
         if normals_dir is not None:

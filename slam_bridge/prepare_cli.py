@@ -8,9 +8,29 @@ from typing import TYPE_CHECKING
 import typer
 
 from rig.cli_support import console, emit_json
+from slam_bridge.prepare_config import DEFAULT_MAX_SIZE
 
 if TYPE_CHECKING:
     from slam_bridge.pose_refinement import RefinementReport
+
+#: ``--max-size`` and ``--downscale``, shared with ``lts reconstruct``.
+MAX_SIZE_OPTION = typer.Option(
+    DEFAULT_MAX_SIZE,
+    "--max-size",
+    min=0,
+    metavar="PX",
+    help="Longest image side of the scene: larger recordings are scaled down to it (images area-averaged, "
+    "intrinsics and normal priors with them; LiDAR depth is made at the final size). The default keeps a "
+    "1920x1080 recording's CPU training within a few times the 320x240 demo's; smaller recordings are "
+    "untouched. On a GPU pass more, or 0 for full size.",
+)
+DOWNSCALE_OPTION = typer.Option(
+    1,
+    "--downscale",
+    min=1,
+    metavar="N",
+    help="Divide the recording's image size by N (then --max-size applies).",
+)
 
 
 def prepare_command(
@@ -45,6 +65,8 @@ def prepare_command(
         "LiDAR pose unless its held-out reprojection error drops, and the whole refinement is refused "
         "when the error over all keyframes does not.",
     ),
+    max_size: int = MAX_SIZE_OPTION,
+    downscale: int = DOWNSCALE_OPTION,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Keyframes with poses, undistorted images, LiDAR points and normal priors (see README)."""
@@ -66,6 +88,8 @@ def prepare_command(
         normals_dir=normals,
         sparse_points=sparse_points,
         refine_poses=refine_poses,
+        max_size=max_size,
+        downscale=downscale,
     )
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("building keyframes", total=None)

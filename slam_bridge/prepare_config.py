@@ -6,7 +6,14 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
+from rig.camera import CameraModel
 from rig.errors import InputError
+
+#: Default longest image side of a scene. CPU training time grows with the pixels per image: a
+#: 1920x1080 recording at 640x360 trains in a few times the 320x240 room demo's time, at full size
+#: in tens of times. Recordings no larger (the demo, the quick run) are untouched. GPU users may
+#: pass a larger value or 0 (full size).
+DEFAULT_MAX_SIZE = 640
 
 
 @dataclass(frozen=True)
@@ -25,6 +32,9 @@ class PrepareConfig:
         refine_poses: refine the keyframe poses against the SLAM mesh, guarded by held-out
             matches (:mod:`slam_bridge.pose_refinement`); LiDAR points, normals and sparse points
             then use the refined poses.
+        max_size: longest side (pixels) of the scene's images; larger recordings are scaled down
+            to it (0: full size). See :data:`DEFAULT_MAX_SIZE`.
+        downscale: divide the recording's image size by this whole number (1: keep it).
     """
 
     keyframe_interval_s: float = 0.5
@@ -36,6 +46,24 @@ class PrepareConfig:
     normals_dir: Path | None = None
     sparse_points: bool = False
     refine_poses: bool = False
+    max_size: int = DEFAULT_MAX_SIZE
+    downscale: int = 1
+
+    def __post_init__(self) -> None:
+        for name, least in (("max_size", 0), ("downscale", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise InputError(f"expected a whole number >= {least}, got {value!r}", field=name)
+
+    def scene_camera(self, camera: CameraModel) -> CameraModel:
+        """The distortion-free pinhole camera of the scene's images: ``camera`` undistorted, scaled
+        down by :attr:`downscale` and further to :attr:`max_size` where it is larger."""
+        scale = 1 / self.downscale
+        if self.max_size:
+            scale = min(scale, self.max_size / max(camera.width, camera.height))
+        size = (max(1, round(camera.width * scale)), max(1, round(camera.height * scale)))
+        target = camera.undistorted()
+        return target if size == target.size else target.scaled(*size)
 
     def to_json(self) -> dict[str, Any]:
         """Every field as a JSON value (paths as strings, the motion pair as a list)."""
@@ -54,10 +82,13 @@ class PrepareConfig:
             raise InputError(f"expected the fields {sorted(names)}, got {got}", path=path, field="options")
         motion = data["keyframe_min_motion"]
         normals = data["normals_dir"]
-        return cls(
-            **{
-                **data,
-                "keyframe_min_motion": None if motion is None else tuple(motion),
-                "normals_dir": None if normals is None else Path(normals),
-            }
-        )
+        try:
+            return cls(
+                **{
+                    **data,
+                    "keyframe_min_motion": None if motion is None else tuple(motion),
+                    "normals_dir": None if normals is None else Path(normals),
+                }
+            )
+        except InputError as exc:
+            raise InputError(exc.reason, path=path, field=f"options.{exc.field}") from None

@@ -63,7 +63,7 @@ def build_scene(
     reader = SessionReader(session)
     topics = find_topics(reader, config.image_topic, config.points_topic)
     mesh, trajectory = load_slam_dir(slam_dir)
-    out, target = Path(out_dir), calibration.camera.undistorted()
+    out, target = Path(out_dir), config.scene_camera(calibration.camera)
     frame_t = frame_stamps(reader, topics.image)
     chosen = select_keyframes(
         frame_t, trajectory, calibration, config.keyframe_interval_s, config.keyframe_min_motion
@@ -73,7 +73,7 @@ def build_scene(
     )
     done = _counter(progress, 3 * len(keyframes))
     frames = frames_at(reader, topics.image, chosen)
-    write_keyframe_images(out, frames, keyframes, calibration.camera, reader.path, done)
+    write_keyframe_images(out, frames, keyframes, calibration.camera, target, reader.path, done)
     raycaster = mesh_raycaster(mesh)
     database = _matches(out, target, keyframes) if config.sparse_points or config.refine_poses else None
     refinement = None
@@ -83,7 +83,9 @@ def build_scene(
         reader.scans(topics.points), trajectory, calibration, keyframes, target, config.keyframe_interval_s
     )
     write_keyframe_lidar(out, keyframes, points, done)
-    write_keyframe_normals(out, keyframes, chosen, calibration.camera, raycaster, config.normals_dir, done)
+    write_keyframe_normals(
+        out, keyframes, chosen, calibration.camera, target, raycaster, config.normals_dir, done
+    )
     shutil.copyfile(Path(slam_dir) / MESH_FILE, out / "mesh.ply")
     sparse_file = _write_sparse_points(database, out, keyframes) if config.sparse_points else None
     report = None if refinement is None else asdict(refinement)
@@ -109,13 +111,14 @@ def write_keyframe_images(
     frames: Iterable[Frame],
     keyframes: list[Keyframe],
     camera: CameraModel,
+    target: CameraModel,
     session: Path,
     done: Callable[[], None],
 ) -> None:
     """Save each keyframe's frame (``frames``: one per keyframe, of the ``session``'s ``camera``)
-    undistorted as ``out/images/NAME.png``; ``done()`` after each."""
+    resampled into the scene's camera ``target`` (undistorted, area-averaged where smaller) as
+    ``out/images/NAME.png``; ``done()`` after each."""
     (out / "images").mkdir(parents=True, exist_ok=True)
-    target = camera.undistorted()
     for frame, keyframe in zip(frames, keyframes, strict=True):
         if (frame.width, frame.height) != (camera.width, camera.height):
             raise InputError(
@@ -124,7 +127,8 @@ def write_keyframe_images(
                 path=session,
                 field="camera.width/height",
             )
-        cv2.imwrite(str(out / "images" / f"{keyframe.name}.png"), camera.undistort_image(frame.image, target))
+        image = camera.undistort_image(frame.image, target, interpolation=cv2.INTER_AREA)
+        cv2.imwrite(str(out / "images" / f"{keyframe.name}.png"), image)
         done()
 
 

@@ -86,3 +86,18 @@ def test_a_failed_stage_is_not_recorded_and_says_where_a_rerun_starts(
         _runner(tmp_path, log).run("a", ["make"], inputs, out, fail)
     assert "a" not in json.loads((tmp_path / stages.MANIFEST).read_text())
     assert any("a rerun of the same command continues from this stage" in line for line in log)
+
+
+def test_the_training_resolution_is_part_of_the_prepare_stages_fingerprint(tmp_path: Path) -> None:
+    from lts.pipeline import ReconstructOptions, prepare_config, prepare_key
+    from slam_bridge.prepare_config import DEFAULT_MAX_SIZE
+
+    def key(**resolution) -> list[str]:
+        config = prepare_config(ReconstructOptions(tmp_path / "s.mcap", tmp_path / "run", **resolution))
+        assert (config.max_size, config.downscale) == (
+            resolution.get("max_size", DEFAULT_MAX_SIZE),
+            resolution.get("downscale", 1),
+        )
+        return prepare_key(config)
+
+    assert len({tuple(key()), tuple(key(max_size=0)), tuple(key(downscale=2))}) == 3

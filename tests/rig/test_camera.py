@@ -1,3 +1,4 @@
+import cv2
 import numpy as np
 import pytest
 
@@ -108,3 +109,42 @@ def test_bad_camera_block_names_file_and_field(block: dict, field: str) -> None:
         CameraModel.from_dict(block, path="calib.yaml")
     assert info.value.field == field
     assert str(info.value).startswith("calib.yaml: ")
+
+
+@pytest.mark.parametrize("name", CAMERAS)
+@pytest.mark.parametrize("size", [(80, 60), (107, 80), (320, 240), (640, 480)])
+def test_scaled_camera_sees_a_point_at_the_same_place_in_the_image(name: str, size: tuple[int, int]) -> None:
+    """A point lands at the same fraction of the image's width and height (measured from the image's
+    edge, half a pixel before the first pixel centre) before and after the resize."""
+    camera = CAMERAS[name]
+    scaled = camera.scaled(*size)
+    points = camera.unproject(pixel_grid(camera, 9), np.linspace(0.5, 20.0, len(pixel_grid(camera, 9))))
+    before = (camera.project(points) + 0.5) / camera.size
+    after = (scaled.project(points) + 0.5) / scaled.size
+    np.testing.assert_allclose(after, before, atol=1e-9)
+    assert scaled.model == camera.model and np.array_equal(scaled.dist, camera.dist)
+
+
+def test_area_undistortion_of_a_distortion_free_camera_is_an_area_resize() -> None:
+    camera = CAMERAS["pinhole-none"]
+    image = np.random.default_rng(1).integers(0, 255, (camera.height, camera.width, 3), dtype=np.uint8)
+    for size in [(80, 60), (160, 120)]:
+        out = camera.undistort_image(image, camera.scaled(*size), interpolation=cv2.INTER_AREA)
+        expected = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+        assert np.abs(out.astype(int) - expected).max() <= 1
+
+
+@pytest.mark.parametrize("name", ["pinhole-5", "fisheye"])
+def test_area_undistortion_into_a_smaller_camera_puts_a_spot_where_it_projects(name: str) -> None:
+    """A bright spot drawn where a point projects in the distorted image is centred, after one
+    undistortion into a camera a third the size, where that camera projects the point."""
+    camera = CAMERAS[name]
+    target = camera.undistorted().scaled(107, 80)
+    point = camera.unproject(np.array([[200.3, 90.6]]), 3.0)
+    u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
+    spot = camera.project(point)[0]
+    image = 250 * np.exp(-((u - spot[0]) ** 2 + (v - spot[1]) ** 2) / (2 * 4.0**2))
+    out = camera.undistort_image(image.astype(np.float32), target, interpolation=cv2.INTER_AREA)
+    tu, tv = np.meshgrid(np.arange(target.width), np.arange(target.height))
+    centroid = np.array([(out * tu).sum(), (out * tv).sum()]) / out.sum()
+    np.testing.assert_allclose(centroid, target.project(point)[0], atol=0.05)
