@@ -5,10 +5,11 @@ rosbag2 sqlite3 bag or a rosbag2 MCAP bag, with the topic names, message types, 
 frame ids that real drivers and datasets use (:data:`LAYOUTS`). Every layout has ``/tf_static`` with
 the camera and the LiDAR in one tree, built from the session's ground-truth ``calib.yaml``.
 
-Header stamps are the session's sensor stamps (``t_device`` if set, else ``t_host``), so a reader
-that aligns by header stamp gets exactly the session's stamps; the bag's receive time is ``t_host``
-plus a fixed transport delay per sensor (:data:`DELAY_NS`). Messages are converted and written one
-at a time.
+Header stamps are the session's host stamps (``t_host``), as ROS drivers stamp in ROS time (the
+host's clock; the virtual rig's device clocks differ from each other by minutes), so a reader that
+aligns by header stamp gets exactly the stamps the session is read with natively; the bag's receive
+time is ``t_host`` plus a fixed transport delay per sensor (:data:`DELAY_NS`). Messages are
+converted and written one at a time.
 """
 
 from __future__ import annotations
@@ -459,13 +460,15 @@ def tf_static_msg(T_cam_lidar: np.ndarray, frame_ids: dict[str, str], stamp: int
 
 
 def _session_stream(reader: SessionReader) -> Iterator[tuple[str, Frame | Scan | ImuSample]]:
-    """``(role, message)`` of the session's camera, LiDAR and IMU in host-time order."""
+    """``(role, message)`` of the session's camera, LiDAR and IMU in host-time order, stamped by the
+    host clock only (``t_device`` None)."""
     streams = [
         (("image", m) for m in reader.frames(DEFAULT_TOPICS["image"])),
         (("points", m) for m in reader.scans(DEFAULT_TOPICS["points"])),
         (("imu", m) for m in reader.imu(DEFAULT_TOPICS["imu"])),
     ]
-    yield from heapq.merge(*streams, key=lambda item: item[1].t_host)
+    for role, message in heapq.merge(*streams, key=lambda item: item[1].t_host):
+        yield role, dataclasses.replace(message, t_device=None)
 
 
 def _open_bag(layout: Layout, path: Path) -> _Ros1Bags | _Rosbag2Sqlite | _Rosbag2Mcap:
