@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import struct
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -14,10 +13,11 @@ from mcap.records import Channel, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from zstandard import ZstdError
 
-from rig.camera import CameraModel
 from rig.errors import InputError
-from rig.messages import Frame, ImuSample, Scan
 from rig.session import ros_messages as rm
+from rig.session.source import Recording, SessionMessage, TimeSpan, TopicSummary
+
+__all__ = ["CORRUPTION_ERRORS", "SessionMessage", "SessionReader", "TopicSummary", "mcap_records"]
 
 #: What reading a damaged MCAP raises: the reader's own errors, short reads, a length field too
 #: large for an index (OverflowError) or an allocation (MemoryError), a chunk that does not
@@ -54,44 +54,35 @@ def mcap_records(f: Any, size: int) -> Iterator[Any]:
     return reader.records
 
 
-@dataclass(frozen=True)
-class SessionMessage:
-    """One decoded message: ``msg`` is the rosbags message object."""
-
-    topic: str
-    msgtype: str
-    t_host: int
-    t_device: int | None
-    msg: Any
-
-
-@dataclass
-class TopicSummary:
-    msgtype: str
-    count: int
-    first_t: int
-    last_t: int
-
-
-class SessionReader:
+class SessionReader(Recording):
     """Sequential reader of a session ``.mcap`` file.
 
     Reads records in file order with the ``mcap`` stream reader, which needs neither the summary
     nor the footer, so a recording cut short (crash, power loss) is read up to its last complete
-    chunk; :attr:`truncated` then says so after a full pass.
+    chunk; :attr:`truncated` then says so after a full pass. Times are the MCAP log times
+    (``t_host``); ``t_device`` is the header stamp of channels stamped by the device clock.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    format = "session"
+
+    def __init__(
+        self, path: str | Path, *, span: TimeSpan | None = None, topic_map: dict[str, str] | None = None
+    ) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError("no such session file", path=self.path)
         with self.path.open("rb") as f:
             if f.read(8) != b"\x89MCAP0\r\n":
                 raise InputError("not an MCAP file (bad magic bytes)", path=self.path)
+        self.span = span
+        self.topic_map = dict(topic_map or {})
         self.truncated = False
         self.truncation_reason = ""
+        self._window: tuple[int, int | None] | None = None
+        self._summary: dict[str, TopicSummary] | None = None
 
-    def _records(self) -> Iterator[Any]:
+    def records(self) -> Iterator[Any]:
+        """Every complete record in file order (chunks unpacked); sets :attr:`truncated` at the end."""
         self.truncated = False
         with self.path.open("rb") as f:
             saw_footer = False
@@ -107,20 +98,33 @@ class SessionReader:
                 self.truncated = True
                 self.truncation_reason = "no footer"
 
+    def _bounds(self, whole: bool) -> tuple[int, int | None] | None:
+        """``(first, stop)`` log times of the span (None: everything), from the first message."""
+        if whole or self.span is None:
+            return None
+        if self._window is None:
+            first = next((r.log_time for r in self.records() if isinstance(r, Message)), 0)
+            self._window = self.span.window(int(first))
+        return self._window
+
     def metadata(self) -> dict[str, dict[str, Any]]:
         """Metadata records by name; values decoded from JSON where they are JSON."""
         out: dict[str, dict[str, Any]] = {}
-        for record in self._records():
+        for record in self.records():
             if isinstance(record, Metadata):
                 out[record.name] = {k: _maybe_json(v) for k, v in record.metadata.items()}
         return out
 
-    def messages(self, topics: Iterable[str] | None = None) -> Iterator[SessionMessage]:
-        """Decoded messages in file order, optionally only those of ``topics``."""
+    def messages(
+        self, topics: Iterable[str] | None = None, *, whole: bool = False
+    ) -> Iterator[SessionMessage]:
+        """Decoded messages in file order, optionally only those of ``topics``; within :attr:`span`
+        unless ``whole``."""
         wanted = None if topics is None else set(topics)
+        bounds = self._bounds(whole)
         schemas: dict[int, Schema] = {}
         channels: dict[int, Channel] = {}
-        for record in self._records():
+        for record in self.records():
             if isinstance(record, Schema):
                 schemas[record.id] = record
             elif isinstance(record, Channel):
@@ -131,6 +135,8 @@ class SessionReader:
                     continue
                 schema = schemas.get(channel.schema_id)
                 if schema is None or channel.message_encoding != "cdr":
+                    continue
+                if not _inside(bounds, record.log_time):
                     continue
                 try:
                     msg = rm.deserialize(record.data, schema.name)
@@ -146,54 +152,37 @@ class SessionReader:
                 yield SessionMessage(channel.topic, schema.name, int(record.log_time), t_device, msg)
 
     def topics(self) -> dict[str, TopicSummary]:
-        """Per topic: message type, count and first/last log time (ns), from a full pass."""
+        """Per topic within :attr:`span`: message type, count and first/last log time (ns), from
+        a full pass (kept for later calls)."""
+        if self._summary is not None:
+            return dict(self._summary)
+        bounds = self._bounds(whole=False)
         summary: dict[str, TopicSummary] = {}
         schemas: dict[int, str] = {}
         channels: dict[int, tuple[str, str]] = {}
-        for record in self._records():
+        for record in self.records():
             if isinstance(record, Schema):
                 schemas[record.id] = record.name
             elif isinstance(record, Channel):
                 channels[record.id] = (record.topic, schemas.get(record.schema_id, "?"))
             elif isinstance(record, Message) and record.channel_id in channels:
+                t = int(record.log_time)
+                if not _inside(bounds, t):
+                    continue
                 topic, msgtype = channels[record.channel_id]
                 entry = summary.get(topic)
-                t = int(record.log_time)
                 if entry is None:
                     summary[topic] = TopicSummary(msgtype, 1, t, t)
                 else:
                     entry.count += 1
                     entry.first_t = min(entry.first_t, t)
                     entry.last_t = max(entry.last_t, t)
-        return summary
+        self._summary = summary
+        return dict(summary)
 
-    def _converted(self, topic: str, convert: Any) -> Iterator[Any]:
-        for m in self.messages([topic]):
-            try:
-                yield convert(m)
-            except InputError as exc:  # the converters know the topic, not the file
-                raise InputError(
-                    f"{exc.reason} (message at log time {m.t_host} ns)",
-                    path=self.path,
-                    field=exc.field or topic,
-                ) from None
 
-    def frames(self, topic: str) -> Iterator[Frame]:
-        return self._converted(
-            topic, lambda m: rm.msg_to_frame(m.msg, m.msgtype, m.t_host, m.t_device, topic)
-        )
-
-    def scans(self, topic: str) -> Iterator[Scan]:
-        return self._converted(topic, lambda m: rm.msg_to_scan(m.msg, m.t_host, m.t_device, topic))
-
-    def imu(self, topic: str) -> Iterator[ImuSample]:
-        return self._converted(topic, lambda m: rm.msg_to_imu(m.msg, m.t_host, m.t_device, topic))
-
-    def camera_model(self, topic: str) -> CameraModel:
-        """The camera model of the first ``CameraInfo`` on ``topic``."""
-        for m in self.messages([topic]):
-            return rm.msg_to_camera(m.msg)
-        raise InputError(f"no CameraInfo on topic {topic}", path=self.path, field=topic)
+def _inside(bounds: tuple[int, int | None] | None, t: int) -> bool:
+    return bounds is None or (bounds[0] <= t and (bounds[1] is None or t < bounds[1]))
 
 
 def _maybe_json(text: str) -> Any:
