@@ -48,9 +48,10 @@ def test_the_default_topic_wins_among_several_and_a_choice_must_exist(tmp_path: 
 
 def test_ambiguous_or_missing_topics_are_named(tmp_path: Path) -> None:
     reader = _session(tmp_path / "s.mcap", ["/a/image", "/b/image"], [], [DEFAULT_TOPICS["imu"]])
-    with pytest.raises(InputError, match=r"expected one image topic, found 2 \(/a/image, /b/image\)"):
+    candidates = r"found 2: /a/image \(sensor_msgs/msg/CompressedImage, 1 messages\), /b/image \("
+    with pytest.raises(InputError, match=rf"expected one image topic, {candidates}.*--topics image=TOPIC"):
         find_topics(reader)
     topics = find_topics(reader, image="/b/image", require_points=False)
     assert (topics.image, topics.points, topics.imu) == ("/b/image", None, DEFAULT_TOPICS["imu"])
-    with pytest.raises(InputError, match="expected one point cloud topic, found 0"):
+    with pytest.raises(InputError, match=r"one point cloud topic, found none \(the recording has: /a"):
         find_topics(reader, image="/b/image")
