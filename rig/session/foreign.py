@@ -1,9 +1,9 @@
-"""Reading other people's recordings: ROS 1 bags, rosbag2 folders and bare MCAP files.
+"""Others' recordings through a role → topic map, as the toolkit's types: what the mapper imports
+(odometry, registered clouds) and the Ouster packet reader use.
 
-A *topic map* says which foreign topic plays which role (``image``, ``camera_info``, ``points``,
-``imu``, ``pose``). Messages come back as the toolkit's types, with ``t_host`` = the time the bag
-recorded the message and ``t_device`` = its header stamp. ROS 1 bags and rosbag2 folders are read
-with rosbags' ``AnyReader``; a bare ``.mcap`` (no ``metadata.yaml``) with :class:`SessionReader`.
+Bags are opened with :func:`rig.session.recording.open_recording`, the one reader of bags in the
+toolkit: ``t_host`` is a message's header stamp (else the bag's receive time, see
+:mod:`rig.session.stamps`) and ``t_device`` is None; our own sessions keep their two clocks.
 """
 
 from __future__ import annotations
@@ -17,17 +17,22 @@ import numpy as np
 
 from rig.errors import InputError
 from rig.session import ros_messages as rm
-from rig.session.reader import SessionReader
+from rig.session.recording import open_recording
+from rig.session.topic_map import UT_MM_TOPICS
+from rig.session.topics import listing
 from rig.trajectory import Trajectory
 
+__all__ = [
+    "ROLES",
+    "UT_MM_TOPICS",
+    "ForeignMessage",
+    "list_topics",
+    "raw_messages",
+    "read_foreign",
+    "read_foreign_trajectory",
+]
+
 ROLES = ("image", "camera_info", "points", "imu", "pose")
-#: Topic map of the UT-MM dataset's bags.
-UT_MM_TOPICS = {
-    "image": "/realsense/color/image_raw/compressed",
-    "camera_info": "/realsense/color/camera_info",
-    "points": "/ouster/points",
-    "imu": "/ouster/imu",
-}
 _POSE_TYPES = ("PoseStamped", "PoseWithCovarianceStamped", "Odometry")
 
 
@@ -43,39 +48,15 @@ class ForeignMessage:
     value: Any
 
 
-def raw_messages(path: Path, topics: set[str]) -> Iterator[tuple[str, str, int, Any]]:
-    """``(topic, msgtype, log time ns, message)`` of ``topics`` in bag order (rosbags types)."""
-    if path.is_file() and path.suffix == ".mcap":
-        for m in SessionReader(path).messages(topics):
-            yield m.topic, m.msgtype, m.t_host, m.msg
-        return
-    from rosbags.highlevel import AnyReader
-    from rosbags.highlevel.anyreader import AnyReaderError
-
-    try:
-        with AnyReader([path], default_typestore=rm.typestore()) as reader:
-            conns = [c for c in reader.connections if c.topic in topics]
-            for conn, t, raw in reader.messages(connections=conns):
-                yield conn.topic, conn.msgtype, int(t), reader.deserialize(raw, conn.msgtype)
-    except AnyReaderError as exc:
-        raise InputError(f"cannot read bag: {exc}", path=path) from exc
+def raw_messages(path: str | Path, topics: set[str]) -> Iterator[tuple[str, str, int, Any]]:
+    """``(topic, msgtype, time ns, message)`` of ``topics`` in file order (rosbags types)."""
+    for m in open_recording(path).messages(topics):
+        yield m.topic, m.msgtype, m.t_host, m.msg
 
 
 def list_topics(path: str | Path) -> dict[str, tuple[str, int]]:
     """``{topic: (msgtype, count)}`` of a bag, rosbag2 folder or MCAP file."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError("no such bag", path=path)
-    if path.is_file() and path.suffix == ".mcap":
-        return {k: (v.msgtype, v.count) for k, v in SessionReader(path).topics().items()}
-    from rosbags.highlevel import AnyReader
-    from rosbags.highlevel.anyreader import AnyReaderError
-
-    try:
-        with AnyReader([path], default_typestore=rm.typestore()) as reader:
-            return {c.topic: (c.msgtype, c.msgcount) for c in reader.connections}
-    except AnyReaderError as exc:
-        raise InputError(f"cannot read bag: {exc}", path=path) from exc
+    return open_recording(path).topic_types()
 
 
 def _pose_matrix(msg: Any, msgtype: str) -> np.ndarray:
@@ -93,38 +74,38 @@ def read_foreign(path: str | Path, topic_map: dict[str, str]) -> Iterator[Foreig
         path: ROS 1 ``.bag``, rosbag2 folder, or ``.mcap`` file.
         topic_map: ``{role: topic}`` with roles from :data:`ROLES`.
     """
-    path = Path(path)
     bad = sorted(set(topic_map) - set(ROLES))
     if bad:
         raise InputError(f"unknown role(s) {bad}; expected some of {ROLES}", field="topic_map")
-    available = list_topics(path)
+    recording = open_recording(path)
+    available = recording.topic_types()
     missing = sorted(t for t in topic_map.values() if t not in available)
     if missing:
-        raise InputError(f"topic(s) {missing} not in the bag (it has {sorted(available)})", path=path)
+        raise InputError(
+            f"topic(s) {missing} not in the bag; it has: {listing(available)}", path=recording.path
+        )
     role_of = {topic: role for role, topic in topic_map.items()}
-    for topic, msgtype, t_log, msg in raw_messages(path, set(role_of)):
-        role = role_of[topic]
-        stamp = rm.stamp_ns(msg) if hasattr(msg, "header") else None
-        name = msgtype.rsplit("/", 1)[-1]
+    for m in recording.messages(set(role_of)):
+        role, msg, topic = role_of[m.topic], m.msg, m.topic
         if role == "image":
-            value: Any = rm.msg_to_frame(msg, msgtype, t_log, stamp, topic)
+            value: Any = rm.msg_to_frame(msg, m.msgtype, m.t_host, m.t_device, topic)
         elif role == "points":
-            value = rm.msg_to_scan(msg, t_log, stamp, topic)
+            value = rm.msg_to_scan(msg, m.t_host, m.t_device, topic)
         elif role == "imu":
-            value = rm.msg_to_imu(msg, t_log, stamp, topic)
+            value = rm.msg_to_imu(msg, m.t_host, m.t_device, topic)
         elif role == "camera_info":
             value = rm.msg_to_camera(msg)
-        elif name in _POSE_TYPES:
-            value = _pose_matrix(msg, msgtype)
+        elif m.msgtype.rsplit("/", 1)[-1] in _POSE_TYPES:
+            value = _pose_matrix(msg, m.msgtype)
         else:
             raise InputError(
-                f"{msgtype} cannot be read as a pose (expected {_POSE_TYPES})", path=path, field=topic
+                f"{m.msgtype} cannot be read as a pose (expected {_POSE_TYPES})", path=path, field=topic
             )
-        yield ForeignMessage(role, topic, t_log, stamp, value)
+        yield ForeignMessage(role, topic, m.t_host, m.t_device, value)
 
 
 def read_foreign_trajectory(path: str | Path, topic: str) -> Trajectory:
-    """The poses of ``topic`` (PoseStamped, PoseWithCovarianceStamped or Odometry), stamped by header."""
+    """The poses of ``topic`` (PoseStamped, PoseWithCovarianceStamped or Odometry), by header stamp."""
     from rig.transforms import to_quaternion
 
     t, trans, quats = [], [], []

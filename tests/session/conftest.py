@@ -70,3 +70,12 @@ def virtual_rig_scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("virtual_rig")
     simulate(SimConfig().quick(), out)
     return out
+
+
+@pytest.fixture(scope="session")
+def layout_bags(virtual_rig_scene: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """``virtual_rig_scene`` written as others' bags, one per layout of ``bag_layouts.LAYOUTS``."""
+    from bag_layouts import LAYOUTS, write_layout
+
+    out = tmp_path_factory.mktemp("layouts")
+    return {name: write_layout(virtual_rig_scene / "session.mcap", out, name) for name in LAYOUTS}

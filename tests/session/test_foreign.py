@@ -1,4 +1,5 @@
-"""Reading others' recordings with a topic map: ROS 1 bags, bare MCAP (rosbag2) files."""
+"""Reading others' recordings with a topic map: ROS 1 bags, bare MCAP (rosbag2) files, timed by
+header stamps."""
 
 from pathlib import Path
 
@@ -27,7 +28,7 @@ def test_ros2_mcap_odometry_and_pose_with_covariance(real_data: Path) -> None:
     assert len(odom.t_ns) == 2639 and len(amcl.t_ns) == 135
     assert np.all(odom.translations[:, 2] == 0)  # a ground robot
     first = next(read_foreign(bag, {"pose": "/amcl_pose"}))
-    assert first.role == "pose" and first.value.shape == (4, 4) and first.t_device == amcl.t_ns[0]
+    assert first.role == "pose" and first.value.shape == (4, 4) and first.t_host == amcl.t_ns[0]
 
 
 def test_topic_map_errors_name_the_problem(real_data: Path) -> None:
