@@ -14,7 +14,7 @@ from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.messages import Frame, ImuSample, Scan
 from rig.pointcloud_io import PointCloud
-from rig.session import DEFAULT_TOPICS, SessionReader, SessionTopics, find_topics
+from rig.session import DEFAULT_TOPICS, Recording, SessionTopics, as_recording, find_topics
 
 #: LiDAR time window (s) around a frame: a whole sweep when the gyro can de-skew it, a short
 #: slice otherwise.
@@ -33,19 +33,20 @@ class SessionData:
     topics: SessionTopics = field(default_factory=lambda: SessionTopics(**DEFAULT_TOPICS))
 
 
-def load_session(path: str | Path, topics: dict[str, str] | None = None) -> SessionData:
-    """Read frames, scans, IMU samples and the camera model (None if absent) from a session;
-    ``topics`` chooses a role's topic (keys of :class:`rig.session.SessionTopics`) where the
-    session has several (see :func:`rig.session.find_topics`)."""
-    reader = SessionReader(path)
+def load_session(path: Recording | str | Path, topics: dict[str, str] | None = None) -> SessionData:
+    """Read frames, scans, IMU samples and the camera model (None if absent) from a recording
+    (open, or its path); ``topics`` chooses a role's topic (keys of
+    :class:`rig.session.SessionTopics`) over the recording's topic map (see
+    :func:`rig.session.find_topics`)."""
+    reader = as_recording(path)
     found = find_topics(reader, **(topics or {}), require_points=False)
     frames = list(reader.frames(found.image))
     scans = list(reader.scans(found.points)) if found.points else []
     imu = list(reader.imu(found.imu)) if found.imu else []
     camera = reader.camera_model(found.camera_info) if found.camera_info else None
     if not frames:
-        raise InputError(f"no camera frames on {found.image}", path=path, field="topics")
-    return SessionData(frames, scans, imu, camera, Path(path), found)
+        raise InputError(f"no camera frames on {found.image}", path=reader.path, field="topics")
+    return SessionData(frames, scans, imu, camera, reader.path, found)
 
 
 def frame_times(data: SessionData) -> np.ndarray:

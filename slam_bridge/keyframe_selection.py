@@ -9,7 +9,7 @@ import numpy as np
 from rig.calibration import Calibration
 from rig.errors import InputError
 from rig.messages import Frame
-from rig.session import SessionReader
+from rig.session import Recording
 from rig.session.ros_messages import msg_to_frame
 from rig.trajectory import Trajectory
 from rig.transforms import distance_and_angle, invert
@@ -21,15 +21,15 @@ def lidar_clock(t_cam_ns: np.ndarray, calibration: Calibration) -> np.ndarray:
     return np.asarray(t_cam_ns, dtype=np.int64) - round(calibration.time_offset_s * 1e9)
 
 
-def frame_stamps(reader: SessionReader, topic: str) -> np.ndarray:
-    """Host stamps ``(N,)`` int64 of the frames on ``topic``, in file order, without decoding images."""
+def frame_stamps(reader: Recording, topic: str) -> np.ndarray:
+    """Times ``(N,)`` int64 (``t_host``) of the frames on ``topic`` in file order, images not decoded."""
     stamps = np.array([m.t_host for m in reader.messages([topic])], dtype=np.int64)
     if stamps.size == 0:
         raise InputError(f"no images on {topic}", path=reader.path)
     return stamps
 
 
-def frames_at(reader: SessionReader, topic: str, indices: np.ndarray) -> Iterator[Frame]:
+def frames_at(reader: Recording, topic: str, indices: np.ndarray) -> Iterator[Frame]:
     """The frames at ``indices`` ``(K,)`` (increasing positions on ``topic``, as in
     :func:`frame_stamps`), decoding only those."""
     wanted = set(np.asarray(indices).tolist())
@@ -38,7 +38,7 @@ def frames_at(reader: SessionReader, topic: str, indices: np.ndarray) -> Iterato
             try:
                 yield msg_to_frame(m.msg, m.msgtype, m.t_host, m.t_device, topic)
             except InputError as exc:
-                message = f"{exc.reason} (message at log time {m.t_host} ns)"
+                message = f"{exc.reason} (message at {m.t_host} ns)"
                 raise InputError(message, path=reader.path, field=exc.field or topic) from None
 
 

@@ -6,11 +6,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from slam_bridge.fallback_mapper import MapperConfig, run_mapper
 from slam_bridge.slam_dir import write_slam_dir
+
+if TYPE_CHECKING:
+    from rig.session import Recording
 
 
 @dataclass(frozen=True)
@@ -32,20 +36,20 @@ class MapSummary:
 
 
 def map_session(
-    session: Path,
+    session: Recording | Path,
     out: Path,
     config: MapperConfig | None = None,
     points_topic: str | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> MapSummary:
-    """Map ``session``'s LiDAR sweeps (topic ``points_topic``, found when ``None``) with the
-    fallback mapper and write the cleaned mesh and the trajectory into the SLAM folder ``out``.
-    ``progress(done, total)`` follows the sweeps."""
-    from rig.session import SessionReader, find_topics
+    """Map the LiDAR sweeps of ``session`` (an open recording or its path; topic ``points_topic``,
+    else the recording's choice) with the fallback mapper and write the cleaned mesh and the
+    trajectory into the SLAM folder ``out``. ``progress(done, total)`` follows the sweeps."""
+    from rig.session import as_recording, find_topics
 
-    reader = SessionReader(session)
-    topic = find_topics(reader, points=points_topic).points
-    total = reader.topics()[topic].count
+    reader = as_recording(session)
+    topic = find_topics(reader, points=points_topic, require_image=False).points
+    total = reader.topic_types()[topic][1]
     result = run_mapper(
         reader.scans(topic),
         config or MapperConfig(),

@@ -22,7 +22,7 @@ from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.mesh_rays import mesh_raycaster
 from rig.messages import Frame
-from rig.session import SessionReader, find_topics
+from rig.session import Recording, as_recording, find_topics
 from slam_bridge.colmap_matches import match_keyframes, read_correspondences
 from slam_bridge.keyframe_lidar import keyframe_lidar, write_keyframe_lidar
 from slam_bridge.keyframe_normals import write_keyframe_normals
@@ -51,7 +51,7 @@ class SceneBuild:
 
 
 def build_scene(
-    session: str | Path,
+    session: Recording | str | Path,
     calibration: Calibration,
     slam_dir: str | Path,
     out_dir: str | Path,
@@ -59,8 +59,9 @@ def build_scene(
     progress: Callable[[int, int], None] | None = None,
 ) -> SceneBuild:
     """Write the scene folder (see :mod:`slam_bridge.scene`); ``progress(done, total)`` is called
-    after each keyframe's image, LiDAR points and normal prior."""
-    reader = SessionReader(session)
+    after each keyframe's image, LiDAR points and normal prior. ``session``: an open recording
+    (its topic map and time span apply) or its path."""
+    reader = as_recording(session)
     topics = find_topics(reader, config.image_topic, config.points_topic)
     mesh, trajectory = load_slam_dir(slam_dir)
     out, target = Path(out_dir), config.scene_camera(calibration.camera)
@@ -89,7 +90,7 @@ def build_scene(
     shutil.copyfile(Path(slam_dir) / MESH_FILE, out / "mesh.ply")
     sparse_file = _write_sparse_points(database, out, keyframes) if config.sparse_points else None
     report = None if refinement is None else asdict(refinement)
-    source = {"session": str(session), "slam_dir": str(slam_dir), "pose_refinement": report}
+    source = {"session": str(reader.path), "slam_dir": str(slam_dir), "pose_refinement": report}
     write_scene_index(out, target, keyframes, config, source, sparse_points=sparse_file)
     return SceneBuild(keyframes, refinement)
 
