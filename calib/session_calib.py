@@ -21,7 +21,8 @@ from calib.time_offset import TimeOffsetResult, estimate_time_offset
 from rig.calibration import Calibration
 from rig.camera import CameraModel
 from rig.errors import InputError
-from rig.session import DEFAULT_TOPICS
+from rig.session import DEFAULT_TOPICS, Recording, as_recording
+from rig.session.tf_static import tf_extrinsic
 
 #: Image + LiDAR pairs used for the targetless extrinsic.
 EXTRINSIC_PAIRS = 6
@@ -81,31 +82,38 @@ def extrinsic_pairs(
 
 
 def calibrate_session(
-    path: str | Path,
+    path: Recording | str | Path,
     init: Calibration | None = None,
     lidar_motion: str = "auto",
     topics: dict[str, str] | None = None,
     board: BoardGeometry | None = None,
 ) -> tuple[Calibration, dict[str, Any]]:
-    """Everything a session supports: camera model, time offset and, with ``init``'s rough
-    ``T_cam_lidar``, the extrinsic — from the chessboard ``board`` when given, else targetless.
-    A time offset or extrinsic whose verdict is not ``ok`` is reported but not applied (the
-    calibration keeps ``init``'s). Returns the calibration and a report."""
-    data = load_session(path, topics)
+    """Everything a recording supports: camera model, time offset and, with a rough
+    ``T_cam_lidar`` (``init``'s, else the recording's ``/tf_static`` one), the extrinsic — from
+    the chessboard ``board`` when given, else targetless. A time offset or extrinsic whose verdict
+    is not ``ok`` is reported but not applied (the calibration keeps the rough one). Returns the
+    calibration and a report (``extrinsic_init`` says where the rough extrinsic came from)."""
+    recording = as_recording(path)
+    data = load_session(recording, topics)
     camera = data.camera or (init.camera if init is not None else None)
     if camera is None:
         raise InputError(
             "the session has no CameraInfo and no --init calibration was given",
-            path=path,
+            path=data.path,
             field="camera_info",
         )
+    report: dict[str, Any] = {"camera_source": "session CameraInfo" if data.camera else "initial calibration"}
+    if init is None and (tf := tf_extrinsic(recording, data.topics)) is not None:
+        init = Calibration(camera, tf.T_cam_lidar)
+        report["extrinsic_init"] = tf.describe()
+    elif init is not None:
+        report["extrinsic_init"] = "--init"
     if board is not None and init is None:
         raise InputError(
             "the board method needs a rough T_cam_lidar (--init) to find the board in the LiDAR clouds",
-            path=path,
+            path=data.path,
             field="--init",
         )
-    report: dict[str, Any] = {"camera_source": "session CameraInfo" if data.camera else "initial calibration"}
     calibration = Calibration(
         camera, init.T_cam_lidar.copy() if init else np.eye(4), init.time_offset_s if init else 0.0
     )
@@ -119,7 +127,7 @@ def calibrate_session(
     if init is None:
         report["extrinsic"] = {
             "verdict": "not run",
-            "reasons": ["the extrinsic needs a rough T_cam_lidar (--init)"],
+            "reasons": ["the extrinsic needs a rough T_cam_lidar (--init, or /tf_static in a bag)"],
         }
     else:
         if board is not None:
@@ -143,9 +151,11 @@ def report_lines(report: dict[str, Any]) -> list[str]:
     lines = []
     for step in ("time", "extrinsic"):
         block = report[step]
+        source = report.get("extrinsic_init", "--init") if step == "extrinsic" else "--init"
+        kept = f"the value from {source}"
         lines.append(
             f"{step}: {block['verdict']}"
             + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
-            + (" — not applied, the --init value is kept" if block.get("applied") is False else "")
+            + (f" — not applied, {kept} is kept" if block.get("applied") is False else "")
         )
     return lines
