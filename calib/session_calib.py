@@ -151,8 +151,11 @@ def report_lines(report: dict[str, Any]) -> list[str]:
     lines = []
     for step in ("time", "extrinsic"):
         block = report[step]
-        source = report.get("extrinsic_init", "--init") if step == "extrinsic" else "--init"
-        kept = f"the value from {source}"
+        given = report.get("extrinsic_init")  # "--init", a /tf_static description, or absent
+        if step == "extrinsic":
+            kept = f"the value from {given}"
+        else:
+            kept = "the value from --init" if given == "--init" else "0 s"
         lines.append(
             f"{step}: {block['verdict']}"
             + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
