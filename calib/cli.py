@@ -14,6 +14,13 @@ import typer
 from typer.core import TyperGroup
 
 from rig.cli_support import console, emit_json
+from rig.recording_options import (
+    DURATION_OPTION,
+    RECORDING_ARGUMENT,
+    START_OPTION,
+    TOPICS_OPTION,
+    open_from_options,
+)
 
 
 class _SessionDefaultGroup(TyperGroup):
@@ -190,7 +197,7 @@ def extrinsic(
 
 @app.command("time")
 def time_offset(
-    session: Path = typer.Argument(..., help="Session .mcap with camera frames and LiDAR scans or IMU."),
+    session: list[Path] = RECORDING_ARGUMENT,
     lidar_motion: str = typer.Option(
         "auto", "--lidar-motion", help="LiDAR-clock motion: imu (built-in gyro), odometry (KISS-ICP) or auto."
     ),
@@ -198,19 +205,23 @@ def time_offset(
         None, "--init", help="calib.yaml for the camera model if the session has none."
     ),
     out: Path | None = typer.Option(None, "--out", help="calib.yaml to update with the offset (when ok)."),
+    topics: str = TOPICS_OPTION,
+    start: float = START_OPTION,
+    duration: float | None = DURATION_OPTION,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
-    """Camera-LiDAR time offset from motion (angular speed of camera vs LiDAR clock)."""
+    """Camera-LiDAR time offset from motion (angular speed of camera vs LiDAR clock): the
+    recording needs camera frames and LiDAR scans or the LiDAR's IMU."""
     from calib.session_calib import calibrate_time
     from calib.session_data import load_session
     from rig.calibration import load_calibration, save_calibration
     from rig.errors import InputError
 
-    data = load_session(session)
-    start = load_calibration(init) if init is not None else None
-    camera = data.camera or (start.camera if start else None)
+    data = load_session(open_from_options(session, topics, start, duration))
+    guess = load_calibration(init) if init is not None else None
+    camera = data.camera or (guess.camera if guess else None)
     if camera is None:
-        raise InputError("the session has no CameraInfo; give --init", path=session, field="camera_info")
+        raise InputError("the session has no CameraInfo; give --init", path=data.path, field="camera_info")
     result, _ = calibrate_time(data, camera, lidar_motion)
     if out is not None:
         updates = {"time_offset_s": result.time_offset_s} if result.verdict == "ok" else {}
@@ -228,10 +239,13 @@ def time_offset(
 
 @app.command("session")
 def session_command(
-    session: Path = typer.Argument(..., help="Session .mcap (also: lts calibrate SESSION ...)."),
+    session: list[Path] = RECORDING_ARGUMENT,
     out: Path = typer.Option(..., "--out", help="calib.yaml to write."),
     init: Path | None = typer.Option(
-        None, "--init", help="calib.yaml with a rough T_cam_lidar (enables the targetless extrinsic)."
+        None,
+        "--init",
+        help="calib.yaml with a rough T_cam_lidar (enables the targetless extrinsic); without it, a bag's "
+        "/tf_static transform between the image's and the point cloud's frames is the rough guess.",
     ),
     lidar_motion: str = typer.Option("auto", "--lidar-motion", help="imu, odometry or auto (see `time`)."),
     board: str | None = typer.Option(
@@ -243,17 +257,22 @@ def session_command(
     outline: str | None = typer.Option(
         None, "--outline", help="Target-based: board size WxH in mm (default: one square beyond the corners)."
     ),
+    topics: str = TOPICS_OPTION,
+    start: float = START_OPTION,
+    duration: float | None = DURATION_OPTION,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
-    """Calibrate what a session supports: camera model, time offset, and with --init the extrinsic
+    """Calibrate what a recording supports (also: lts calibrate RECORDING... --out ...): camera
+    model, time offset, and with a rough extrinsic (--init, or a bag's /tf_static) the extrinsic
     (target-based with --board, else targetless)."""
     from calib.board_session import board_geometry
     from calib.session_calib import calibrate_session, report_lines
     from rig.calibration import load_calibration, save_calibration
 
-    start = load_calibration(init) if init is not None else None
+    guess = load_calibration(init) if init is not None else None
     geometry = board_geometry(board, square, outline) if board is not None else None
-    calibration, report = calibrate_session(session, start, lidar_motion, board=geometry)
+    recording = open_from_options(session, topics, start, duration)
+    calibration, report = calibrate_session(recording, guess, lidar_motion, board=geometry)
     save_calibration(calibration, out)
     summary = {
         "T_cam_lidar": calibration.T_cam_lidar.tolist(),

@@ -3,9 +3,11 @@
 =========  ==============================================  ==============================
 stage      what                                            output in RUN_DIR
 =========  ==============================================  ==============================
-calibrate  ``--calib`` copied, or the session calibrated   ``calib.yaml``
-           from the rough ``--init`` (time offset,
-           extrinsic; only ``ok`` results are applied)
+calibrate  ``--calib`` copied (``tf``: the bag's own       ``calib.yaml``
+           CameraInfo and ``/tf_static``), or the
+           recording calibrated from the rough ``--init``
+           or ``/tf_static`` (time offset, extrinsic;
+           only ``ok`` results are applied)
 slam       ``--slam`` imported, or the fallback mapper     ``slam/``
 prepare    keyframes, LiDAR points, normal priors          ``scene/``
 train      triangle splatting (resumed from its            ``train/``
@@ -13,7 +15,9 @@ train      triangle splatting (resumed from its            ``train/``
 evaluate   metrics against ``--gt`` and the report         ``train/eval.json``, ``report.html``
 =========  ==============================================  ==============================
 
-Each stage calls its package's entry point in this process, through one
+The recording (a session, or a bag read in place) is opened once, with its topic map and time
+span, and handed to every stage; a bag is fingerprinted by the size and modification time of its
+files, never read for it. Each stage calls its package's entry point in this process, through one
 :class:`~lts.stages.StageRunner`: a stage whose inputs and options are unchanged since it
 finished is skipped, so a crash or Ctrl-C resumes at the stage that stopped. A training folder
 made with other options or on an older scene is kept as ``train.previous-N``, never deleted.
@@ -23,7 +27,7 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
@@ -31,6 +35,8 @@ from typing import TYPE_CHECKING
 
 from lts.stages import StageRecord, StageRunner
 from rig.errors import InputError
+from rig.recording_options import CALIB_FROM_RECORDING, span_key
+from rig.session import Recording, TimeSpan, open_recording, parse_topic_map
 from slam_bridge.prepare_config import DEFAULT_MAX_SIZE
 from slam_bridge.scene import FORMAT_VERSION, Scene, load_scene
 
@@ -43,9 +49,10 @@ STAGES = ("calibrate", "slam", "prepare", "train", "evaluate")
 
 @dataclass
 class ReconstructOptions:
-    """What ``lts reconstruct`` was asked for."""
+    """What ``lts reconstruct`` was asked for (``session``: one path, or the split files of one
+    ROS 1 bag; ``calib`` may be ``tf``: the recording's own calibration)."""
 
-    session: Path
+    session: Path | Sequence[Path]
     out: Path
     calib: Path | None = None
     init: Path | None = None
@@ -59,6 +66,17 @@ class ReconstructOptions:
     keyframe_interval_s: float | None = None
     max_size: int = DEFAULT_MAX_SIZE
     downscale: int = 1
+    topics: str = "auto"
+    span: TimeSpan | None = None
+
+    @property
+    def paths(self) -> list[Path]:
+        return [self.session] if isinstance(self.session, Path) else list(self.session)
+
+    def recording_key(self) -> list[str]:
+        """The recording as the stages' fingerprints name it: its paths, topic map and span."""
+        topics = [] if self.topics == "auto" else ["--topics", self.topics]
+        return [*map(str, self.paths), *topics, *span_key(self.span)]
 
 
 @dataclass
@@ -70,29 +88,34 @@ class ReconstructResult:
 
 def reconstruct(o: ReconstructOptions, log: Callable[[str], None] = print) -> ReconstructResult:
     """Run (or resume) every stage of a reconstruction into ``o.out``; see the module docstring."""
-    check_options(o)
+    recording = check_options(o)
     stages = StageRunner(o.out, STAGES, log)
     calib, slam, scene, train = o.out / "calib.yaml", o.out / "slam", o.out / "scene", o.out / "train"
+    source, paths = o.recording_key(), o.paths
 
-    if o.calib is not None:
+    if o.calib is not None and str(o.calib) == CALIB_FROM_RECORDING:
+        key = ["recording calibration (CameraInfo, /tf_static)", *source]
+        stages.run("calibrate", key, paths, calib, lambda: recording_calibration(recording, calib, log))
+    elif o.calib is not None:
         key, inputs = ["copy", str(o.calib)], [o.calib]
         stages.run("calibrate", key, inputs, calib, lambda: copy_calibration(o.calib, calib))
     else:
-        key, inputs = ["lts calibrate session", str(o.session), "--init", str(o.init)], [o.session, o.init]
-        stages.run("calibrate", key, inputs, calib, lambda: calibrate(o.session, o.init, calib, log))
+        key = ["lts calibrate session", *source, "--init", str(o.init)]
+        inputs = [*paths, *([o.init] if o.init is not None else [])]
+        stages.run("calibrate", key, inputs, calib, lambda: calibrate(recording, o.init, calib, log))
 
     if o.slam is not None:
         key, inputs = ["lts slam import", str(o.slam)], [o.slam]
         stages.run("slam", key, inputs, slam / "mesh.ply", lambda: import_slam(o.slam, slam, log))
     else:
-        key, inputs = ["lts slam run", str(o.session)], [o.session, calib]
-        stages.run("slam", key, inputs, slam / "mesh.ply", lambda: map_session(o.session, slam, log))
+        key, inputs = ["lts slam run", *source], [*paths, calib]
+        stages.run("slam", key, inputs, slam / "mesh.ply", lambda: map_session(recording, slam, log))
 
     keyframes = prepare_config(o)
-    key, inputs = ["lts prepare", str(o.session), *prepare_key(keyframes)], [o.session, calib, slam]
+    key, inputs = ["lts prepare", *source, *prepare_key(keyframes)], [*paths, calib, slam]
     prepared = stages.run(
         "prepare", key, inputs, scene / "scene.json",
-        lambda: build_scene(o.session, calib, slam, scene, keyframes, log),
+        lambda: build_scene(recording, calib, slam, scene, keyframes, log),
     )  # fmt: skip
 
     loaded_scene = cache(lambda: load_scene(scene))  # training and evaluation read its files once
@@ -114,20 +137,26 @@ def reconstruct(o: ReconstructOptions, log: Callable[[str], None] = print) -> Re
 EVALUATED_FILES = ("model.pt", "mesh.ply", "collision.obj", "summary.json")
 
 
-def check_options(o: ReconstructOptions) -> None:
-    """Refuse a missing session or calibration before any stage starts."""
-    if not o.session.is_file():
-        raise InputError("no such session file", path=o.session)
+def check_options(o: ReconstructOptions) -> Recording:
+    """Refuse a missing or unreadable recording, a bad topic map or calibration before any stage
+    starts; the recording, opened."""
+    recording = open_recording(o.paths, topic_map=parse_topic_map(o.topics), span=o.span)
     if o.calib is None and o.init is None:
-        raise InputError(
-            "give --calib (a full calibration) or --init (a rough T_cam_lidar for lts calibrate to "
-            "refine, with the time offset estimated from the session)",
-            field="calib",
-        )
-    if o.calib is not None:
+        from rig.session import find_topics
+        from rig.session.tf_static import tf_extrinsic
+
+        if tf_extrinsic(recording, find_topics(recording)) is None:
+            raise InputError(
+                "give --calib (a full calibration) or --init (a rough T_cam_lidar for lts calibrate to "
+                "refine, with the time offset estimated from the session); the recording has no "
+                "/tf_static transform between its image and point cloud frames to start from",
+                field="calib",
+            )
+    if o.calib is not None and str(o.calib) != CALIB_FROM_RECORDING:
         from rig.calibration import load_calibration
 
         load_calibration(o.calib)  # a bad file stops here, with its own error
+    return recording
 
 
 def copy_calibration(source: Path, out: Path) -> None:
@@ -136,12 +165,25 @@ def copy_calibration(source: Path, out: Path) -> None:
     shutil.copyfile(source, out)
 
 
-def calibrate(session: Path, init: Path, out: Path, log: Callable[[str], None]) -> None:
-    """The calibrate stage: the session's time offset and extrinsic refined from ``init``."""
+def recording_calibration(recording: Recording, out: Path, log: Callable[[str], None]) -> None:
+    """The calibrate stage with ``--calib tf``: the recording's CameraInfo and /tf_static extrinsic."""
+    from rig.calibration import save_calibration
+    from rig.session import find_topics
+    from rig.session.tf_static import recording_calibration as own_calibration
+
+    calibration = own_calibration(recording, find_topics(recording))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    save_calibration(calibration, out)
+    log(f"  {calibration.quality['source']}")
+
+
+def calibrate(recording: Recording, init: Path | None, out: Path, log: Callable[[str], None]) -> None:
+    """The calibrate stage: the recording's time offset and extrinsic refined from ``init`` (or
+    from the recording's /tf_static extrinsic)."""
     from calib.session_calib import calibrate_session, report_lines
     from rig.calibration import load_calibration, save_calibration
 
-    calibration, report = calibrate_session(session, load_calibration(init))
+    calibration, report = calibrate_session(recording, load_calibration(init) if init is not None else None)
     out.parent.mkdir(parents=True, exist_ok=True)
     save_calibration(calibration, out)
     for line in report_lines(report):
@@ -156,8 +198,8 @@ def import_slam(source: Path, out: Path, log: Callable[[str], None]) -> None:
         log(f"  {line}")
 
 
-def map_session(session: Path, out: Path, log: Callable[[str], None]) -> None:
-    """The slam stage without a mapper's output: the fallback mapper on the session's sweeps."""
+def map_session(session: Recording, out: Path, log: Callable[[str], None]) -> None:
+    """The slam stage without a mapper's output: the fallback mapper on the recording's sweeps."""
     from slam_bridge.map_session import map_session as run_fallback_mapper
 
     summary = run_fallback_mapper(session, out)
@@ -183,7 +225,7 @@ def prepare_key(config: PrepareConfig) -> list[str]:
 
 
 def build_scene(
-    session: Path, calib: Path, slam: Path, out: Path, config: PrepareConfig, log: Callable[[str], None]
+    session: Recording, calib: Path, slam: Path, out: Path, config: PrepareConfig, log: Callable[[str], None]
 ) -> None:
     """The prepare stage: a fresh scene folder ``out`` (an older one is removed first)."""
     from rig.calibration import load_calibration

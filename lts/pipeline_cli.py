@@ -9,6 +9,14 @@ from typing import TYPE_CHECKING
 import typer
 
 from rig.cli_support import console, emit_json
+from rig.recording_options import (
+    CALIB_TF_HELP,
+    DURATION_OPTION,
+    RECORDING_ARGUMENT,
+    START_OPTION,
+    TOPICS_OPTION,
+    time_span,
+)
 from slam_bridge.prepare_cli import DOWNSCALE_OPTION, MAX_SIZE_OPTION
 
 if TYPE_CHECKING:
@@ -67,15 +75,18 @@ def _print_table(summary: dict) -> None:
 
 
 def reconstruct_command(
-    session: Path = typer.Argument(..., help="Session .mcap (rig record or lts sim)."),
+    session: list[Path] = RECORDING_ARGUMENT,
     out: Path = typer.Option(
         ..., "--out", "-o", help="Run folder: calib.yaml, slam/, scene/, train/, report."
     ),
-    calib: Path | None = typer.Option(None, "--calib", help="A finished calibration (skips lts calibrate)."),
+    calib: Path | None = typer.Option(
+        None, "--calib", help=f"A finished calibration (skips lts calibrate): a calib.yaml, {CALIB_TF_HELP}."
+    ),
     init: Path | None = typer.Option(
         None,
         "--init",
-        help="A rough calibration (e.g. the rig's CAD values) for lts calibrate session to refine.",
+        help="A rough calibration (e.g. the rig's CAD values) for lts calibrate session to refine; "
+        "without --calib and --init, a bag's /tf_static extrinsic is refined.",
     ),
     slam: Path | None = typer.Option(
         None,
@@ -96,11 +107,15 @@ def reconstruct_command(
     ),
     max_size: int = MAX_SIZE_OPTION,
     downscale: int = DOWNSCALE_OPTION,
+    topics: str = TOPICS_OPTION,
+    start: float = START_OPTION,
+    duration: float | None = DURATION_OPTION,
     json_out: bool = typer.Option(
         False, "--json", help="Print the metrics and per-stage seconds as one JSON object."
     ),
 ) -> None:
-    """Calibrate, map (or import), prepare, train and evaluate one session.
+    """Calibrate, map (or import), prepare, train and evaluate one recording (a session, or a bag
+    read in place).
 
     Every stage writes into --out and is skipped on a rerun when its inputs and options are
     unchanged, so a crash or Ctrl-C resumes where it stopped (training from its last checkpoint)
@@ -110,7 +125,7 @@ def reconstruct_command(
 
     options = ReconstructOptions(
         session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval,
-        max_size=max_size, downscale=downscale,
+        max_size=max_size, downscale=downscale, topics=topics, span=time_span(start, duration),
     )  # fmt: skip
     result, _ = _run_stages(lambda: (reconstruct(options, _log), []))
     summary = _summary(result)

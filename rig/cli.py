@@ -12,6 +12,7 @@ import typer
 
 from rig.cli_support import VERSION_OPTION, console, emit_json, run_app
 from rig.errors import InputError
+from rig.recording_options import DURATION_OPTION, RECORDING_ARGUMENT, START_OPTION, TOPICS_OPTION
 
 app = typer.Typer(
     name="rig",
@@ -249,23 +250,35 @@ def check(
 
 @app.command()
 def info(
-    session: Path = typer.Argument(..., help="Session file (.mcap)."),
+    session: list[Path] = RECORDING_ARGUMENT,
+    topics: str = TOPICS_OPTION,
+    start: float = START_OPTION,
+    duration: float | None = DURATION_OPTION,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
-    """Topics, counts, time span, recording errors, and whether the file was cut short."""
+    """Topics, counts, time span, recording errors, whether the file was cut short, where a bag's
+    times come from, and which topic plays which role (as the offline commands pick them)."""
+    from rig.recording_options import time_span
+    from rig.session import parse_topic_map
     from rig.session.info import session_info
 
-    result = session_info(session)
+    result = session_info(session, time_span(start, duration), parse_topic_map(topics))
     if json_out:
         emit_json(result)
         return
     for name, t in result["topics"].items():
-        console.print(f"{name:32s} {t['type']:32s} {t['count']:7d}", highlight=False)
-    console.print(f"duration {result['duration_s']:.2f} s, {result['messages']} messages")
+        stamps = f"  {t['stamps']}" if "stamps" in t else ""
+        console.print(f"{name:32s} {t['type']:32s} {t['count']:7d}{stamps}", highlight=False)
+    console.print(f"{result['format']}: duration {result['duration_s']:.2f} s, {result['messages']} messages")
+    if result["roles"] is not None:
+        roles = ", ".join(f"{role}={topic}" for role, topic in result["roles"].items() if topic)
+        console.print(f"roles: {roles}", highlight=False)
+    else:
+        console.print(f"roles: {result['roles_problem']}", highlight=False)
     if result["truncated"]:
         console.print(
             f"[yellow]truncated[/]: read up to the last complete chunk ({result['truncation_reason']}); "
-            f"`rig recover {session} --out FIXED.mcap` rewrites it as a valid file",
+            f"`rig recover {session[0]} --out FIXED.mcap` rewrites it as a valid file",
             highlight=False,
         )
 

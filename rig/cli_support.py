@@ -7,6 +7,7 @@ input ends the command with a one-line error and exit status 2, never a tracebac
 from __future__ import annotations
 
 import json
+import logging
 import sys
 from collections.abc import Callable
 from typing import Any, TextIO
@@ -52,10 +53,26 @@ def _run_with_json_stdout(app: typer.Typer, prog_name: str) -> Any:
             _json_stream = None
 
 
+class _ConsoleLogHandler(logging.Handler):
+    """The toolkit's log records (e.g. which clock times a bag's topic) as plain lines on stderr."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        console.print(record.getMessage(), highlight=False, markup=False)
+
+
+def _show_library_logs() -> None:
+    """Show INFO and above of the ``rig`` loggers on stderr (once, however often called)."""
+    logger = logging.getLogger("rig")
+    if not any(isinstance(h, _ConsoleLogHandler) for h in logger.handlers):
+        logger.addHandler(_ConsoleLogHandler())
+        logger.setLevel(logging.INFO)
+
+
 def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
     """Wrap a Typer app into a console-script entry point that reports bad input in one line."""
 
     def main() -> None:
+        _show_library_logs()
         try:
             # Outside standalone mode Click returns the code of a typer.Exit instead of raising it.
             code = _run_with_json_stdout(app, prog_name)

@@ -8,6 +8,13 @@ from pathlib import Path
 import typer
 
 from rig.cli_support import console, emit_json
+from rig.recording_options import (
+    DURATION_OPTION,
+    RECORDING_ARGUMENT,
+    START_OPTION,
+    TOPICS_OPTION,
+    open_from_options,
+)
 
 app = typer.Typer(
     help="Import mesh-SLAM output (mesh + trajectory) into a SLAM folder.", no_args_is_help=True
@@ -74,21 +81,25 @@ def import_command(
 
 @app.command("run")
 def run_command(
-    session: Path = typer.Argument(
-        ..., help="Session .mcap with a LiDAR point-cloud topic (per-point times)."
-    ),
+    session: list[Path] = RECORDING_ARGUMENT,
     out: Path = typer.Option(..., "--out", help="SLAM folder to write: mesh.ply + trajectory.tum."),
     calib: Path | None = typer.Option(
         None, "--calib", help="calib.yaml; only checked here (the mapper uses the LiDAR alone)."
     ),
-    points_topic: str | None = typer.Option(None, "--points-topic", help="Point-cloud topic, if several."),
+    points_topic: str | None = typer.Option(
+        None, "--points-topic", help="Point-cloud topic (overrides --topics points=...)."
+    ),
+    topics: str = TOPICS_OPTION,
+    start: float = START_OPTION,
+    duration: float | None = DURATION_OPTION,
     voxel: float | None = typer.Option(
         None, "--voxel", help="KISS-ICP voxel size in m (default: from the data)."
     ),
     tsdf_voxel: float = typer.Option(0.04, "--tsdf-voxel", help="TSDF voxel size in m (mesh resolution)."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
-    """Fallback mapper: KISS-ICP LiDAR odometry (deskewed scans) and a TSDF mesh, written like an import."""
+    """Fallback mapper on a recording's LiDAR sweeps (per-point times): KISS-ICP LiDAR odometry
+    (deskewed scans) and a TSDF mesh, written like an import."""
     from rich.progress import Progress
 
     from rig.calibration import load_calibration
@@ -97,11 +108,12 @@ def run_command(
 
     if calib is not None:
         load_calibration(calib)
+    recording = open_from_options(session, topics, start, duration)
     config = MapperConfig(voxel_size_m=voxel, tsdf_voxel_m=tsdf_voxel)
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("mapping (KISS-ICP + TSDF)", total=None)
         summary = map_session(
-            session, out, config, points_topic, progress=lambda i, n: bar.update(task, completed=i, total=n)
+            recording, out, config, points_topic, progress=lambda i, n: bar.update(task, completed=i, total=n)
         )
     if json_out:
         emit_json(asdict(summary))

@@ -8,6 +8,15 @@ from typing import TYPE_CHECKING
 import typer
 
 from rig.cli_support import console, emit_json
+from rig.recording_options import (
+    CALIB_TF_HELP,
+    DURATION_OPTION,
+    RECORDING_ARGUMENT,
+    START_OPTION,
+    TOPICS_OPTION,
+    calibration_option,
+    open_from_options,
+)
 from slam_bridge.prepare_config import DEFAULT_MAX_SIZE
 
 if TYPE_CHECKING:
@@ -34,8 +43,10 @@ DOWNSCALE_OPTION = typer.Option(
 
 
 def prepare_command(
-    session: Path = typer.Argument(..., help="Session .mcap (camera images + LiDAR point clouds)."),
-    calib: Path = typer.Option(..., "--calib", help="calib.yaml: camera, T_cam_lidar, time_offset_s."),
+    session: list[Path] = RECORDING_ARGUMENT,
+    calib: Path = typer.Option(
+        ..., "--calib", help=f"calib.yaml: camera, T_cam_lidar, time_offset_s; {CALIB_TF_HELP}."
+    ),
     slam: Path = typer.Option(..., "--slam", help="SLAM folder (mesh.ply + trajectory.tum), from lts slam."),
     out: Path = typer.Option(..., "--out", help="Scene folder to write."),
     interval: float = typer.Option(0.5, "--keyframe-interval", help="Seconds between keyframes."),
@@ -46,8 +57,15 @@ def prepare_command(
         help="Choose keyframes by motion instead of time: a new one after M metres or DEG degrees.",
     ),
     test_every: int = typer.Option(8, "--test-every", help="Hold out every n-th keyframe for testing."),
-    image_topic: str | None = typer.Option(None, "--image-topic", help="Image topic, if several."),
-    points_topic: str | None = typer.Option(None, "--points-topic", help="Point-cloud topic, if several."),
+    image_topic: str | None = typer.Option(
+        None, "--image-topic", help="Image topic (overrides --topics image=...)."
+    ),
+    points_topic: str | None = typer.Option(
+        None, "--points-topic", help="Point-cloud topic (overrides --topics points=...)."
+    ),
+    topics: str = TOPICS_OPTION,
+    start: float = START_OPTION,
+    duration: float | None = DURATION_OPTION,
     normals: Path | None = typer.Option(
         None,
         "--normals",
@@ -74,11 +92,11 @@ def prepare_command(
 
     from rich.progress import Progress
 
-    from rig.calibration import load_calibration
     from slam_bridge.prepare_config import PrepareConfig
     from slam_bridge.scene_builder import build_scene
 
-    calibration = load_calibration(calib)
+    recording = open_from_options(session, topics, start, duration)
+    calibration = calibration_option(calib, recording, image=image_topic, points=points_topic)
     config = PrepareConfig(
         interval,
         keyframe_motion,
@@ -94,7 +112,7 @@ def prepare_command(
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("building keyframes", total=None)
         built = build_scene(
-            session,
+            recording,
             calibration,
             slam,
             out,

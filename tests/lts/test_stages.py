@@ -101,3 +101,24 @@ def test_the_training_resolution_is_part_of_the_prepare_stages_fingerprint(tmp_p
         return prepare_key(config)
 
     assert len({tuple(key()), tuple(key(max_size=0)), tuple(key(downscale=2))}) == 3
+
+
+def test_a_recordings_paths_topic_map_and_span_key_its_stages(tmp_path: Path) -> None:
+    from lts.pipeline import ReconstructOptions
+    from rig.session import TimeSpan
+
+    parts = [tmp_path / "run_0.bag", tmp_path / "run_1.bag"]
+    options = ReconstructOptions(parts, tmp_path / "out", topics="ut-mm", span=TimeSpan(5.0, 10.0))
+    assert options.recording_key() == [
+        *map(str, parts),
+        "--topics",
+        "ut-mm",
+        "--start",
+        "5",
+        "--duration",
+        "10",
+    ]
+    # A session with the defaults keys its stages as before (finished runs stay finished).
+    assert ReconstructOptions(tmp_path / "s.mcap", tmp_path / "out").recording_key() == [
+        str(tmp_path / "s.mcap")
+    ]
