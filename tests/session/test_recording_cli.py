@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from tests.session.ros1_bags import cloud, image, write_ros1_bag
@@ -133,3 +134,36 @@ def test_every_recording_command_documents_bags_topics_and_span(command: str) ->
     assert result.returncode == 0, result.stderr
     for part in ("--topics", "--start", "--duration", "ROS 1 .bag", "header stamp", "preset"):
         assert part in text, (command, part)
+
+
+def test_unreadable_messages_are_one_line_errors(tmp_path: Path) -> None:
+    from rig.session.livox_messages import register_livox_types
+    from tests.session.ros1_bags import STORE, TYPES, header
+
+    yuv = image(T0)
+    yuv.encoding = "yuv422"
+    bag = write_ros1_bag(
+        tmp_path / "yuv.bag", [("/cam/image", T0, yuv), ("/os/points", T0 + 1, cloud(T0 + 1))]
+    )
+    one_line_error(
+        run("lts", "calibrate", bag, "--out", tmp_path / "c.yaml"),
+        str(bag),
+        "/cam/image",
+        "unsupported image encoding 'yuv422'",
+    )
+    register_livox_types(STORE)
+    point = TYPES["livox_ros_driver/msg/CustomPoint"](
+        offset_time=0, x=1.0, y=2.0, z=3.0, reflectivity=10, tag=0, line=0
+    )
+    livox = TYPES["livox_ros_driver/msg/CustomMsg"](
+        header=header(T0, "livox_frame"),
+        timebase=T0,
+        point_num=2,
+        lidar_id=0,
+        rsvd=np.zeros(3, dtype=np.uint8),
+        points=[point],
+    )
+    bag = write_ros1_bag(tmp_path / "livox.bag", [("/livox/lidar", T0, livox)])
+    one_line_error(
+        run("lts", "slam", "run", bag, "--out", tmp_path / "s"), str(bag), "/livox/lidar", "point_num=2"
+    )
