@@ -25,6 +25,10 @@ TOPICS_OPTION = typer.Option("auto", "--topics", metavar="MAP", help=TOPICS_HELP
 START_OPTION = typer.Option(
     0.0, "--start", min=0.0, metavar="S", help="Read from S seconds after the recording's first message."
 )
+IMAGE_TOPIC_OPTION = typer.Option(None, "--image-topic", help="Image topic (overrides --topics image=...).")
+POINTS_TOPIC_OPTION = typer.Option(
+    None, "--points-topic", help="Point-cloud topic (overrides --topics points=...)."
+)
 DURATION_OPTION = typer.Option(
     None, "--duration", min=0.0, metavar="S", help="Read S seconds from --start (default: to the end)."
 )

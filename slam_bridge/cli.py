@@ -10,6 +10,7 @@ import typer
 from rig.cli_support import console, emit_json
 from rig.recording_options import (
     DURATION_OPTION,
+    POINTS_TOPIC_OPTION,
     RECORDING_ARGUMENT,
     START_OPTION,
     TOPICS_OPTION,
@@ -86,9 +87,7 @@ def run_command(
     calib: Path | None = typer.Option(
         None, "--calib", help="calib.yaml; only checked here (the mapper uses the LiDAR alone)."
     ),
-    points_topic: str | None = typer.Option(
-        None, "--points-topic", help="Point-cloud topic (overrides --topics points=...)."
-    ),
+    points_topic: str | None = POINTS_TOPIC_OPTION,
     topics: str = TOPICS_OPTION,
     start: float = START_OPTION,
     duration: float | None = DURATION_OPTION,

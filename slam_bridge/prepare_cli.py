@@ -11,6 +11,8 @@ from rig.cli_support import console, emit_json
 from rig.recording_options import (
     CALIB_TF_HELP,
     DURATION_OPTION,
+    IMAGE_TOPIC_OPTION,
+    POINTS_TOPIC_OPTION,
     RECORDING_ARGUMENT,
     START_OPTION,
     TOPICS_OPTION,
@@ -57,12 +59,8 @@ def prepare_command(
         help="Choose keyframes by motion instead of time: a new one after M metres or DEG degrees.",
     ),
     test_every: int = typer.Option(8, "--test-every", help="Hold out every n-th keyframe for testing."),
-    image_topic: str | None = typer.Option(
-        None, "--image-topic", help="Image topic (overrides --topics image=...)."
-    ),
-    points_topic: str | None = typer.Option(
-        None, "--points-topic", help="Point-cloud topic (overrides --topics points=...)."
-    ),
+    image_topic: str | None = IMAGE_TOPIC_OPTION,
+    points_topic: str | None = POINTS_TOPIC_OPTION,
     topics: str = TOPICS_OPTION,
     start: float = START_OPTION,
     duration: float | None = DURATION_OPTION,
