@@ -82,7 +82,7 @@ def test_split_bags_reconstruct_with_their_own_calibration(
     args = [
         LTS, "reconstruct", layout_bags["utmm_split"], "--calib", "tf", "--topics", "ut-mm",
         "--gt", virtual_rig_scene / "ground_truth", "--preset", "fast", "--iterations", "150",
-        "--out", run, "--json",
+        "--keyframe-interval", "0.2", "--out", run, "--json",
     ]  # fmt: skip
     result = subprocess.run(args, capture_output=True, text=True, timeout=900)
     assert result.returncode == 0, result.stderr[-3000:]
