@@ -15,6 +15,7 @@ from typer.core import TyperGroup
 
 from rig.cli_support import console, emit_json
 from rig.recording_options import (
+    CAMERA_OPTION,
     DURATION_OPTION,
     RECORDING_ARGUMENT,
     START_OPTION,
@@ -206,6 +207,7 @@ def time_offset(
     ),
     out: Path | None = typer.Option(None, "--out", help="calib.yaml to update with the offset (when ok)."),
     topics: str = TOPICS_OPTION,
+    camera: int | None = CAMERA_OPTION,
     start: float = START_OPTION,
     duration: float | None = DURATION_OPTION,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
@@ -217,7 +219,7 @@ def time_offset(
     from rig.calibration import load_calibration, save_calibration
     from rig.errors import InputError
 
-    data = load_session(open_from_options(session, topics, start, duration))
+    data = load_session(open_from_options(session, topics, start, duration, camera))
     guess = load_calibration(init) if init is not None else None
     camera = data.camera or (guess.camera if guess else None)
     if camera is None:
@@ -258,6 +260,7 @@ def session_command(
         None, "--outline", help="Target-based: board size WxH in mm (default: one square beyond the corners)."
     ),
     topics: str = TOPICS_OPTION,
+    camera: int | None = CAMERA_OPTION,
     start: float = START_OPTION,
     duration: float | None = DURATION_OPTION,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
@@ -271,7 +274,7 @@ def session_command(
 
     guess = load_calibration(init) if init is not None else None
     geometry = board_geometry(board, square, outline) if board is not None else None
-    recording = open_from_options(session, topics, start, duration)
+    recording = open_from_options(session, topics, start, duration, camera)
     calibration, report = calibrate_session(recording, guess, lidar_motion, board=geometry)
     save_calibration(calibration, out)
     summary = {

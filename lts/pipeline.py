@@ -68,6 +68,7 @@ class ReconstructOptions:
     downscale: int = 1
     topics: str = "auto"
     span: TimeSpan | None = None
+    camera: int | None = None
 
     @property
     def paths(self) -> list[Path]:
@@ -76,7 +77,8 @@ class ReconstructOptions:
     def recording_key(self) -> list[str]:
         """The recording as the stages' fingerprints name it: its paths, topic map and span."""
         topics = [] if self.topics == "auto" else ["--topics", self.topics]
-        return [*map(str, self.paths), *topics, *span_key(self.span)]
+        camera = [] if self.camera is None else ["--camera", str(self.camera)]
+        return [*map(str, self.paths), *topics, *camera, *span_key(self.span)]
 
 
 @dataclass
@@ -91,7 +93,7 @@ def reconstruct(o: ReconstructOptions, log: Callable[[str], None] = print) -> Re
     recording = check_options(o)
     stages = StageRunner(o.out, STAGES, log)
     calib, slam, scene, train = o.out / "calib.yaml", o.out / "slam", o.out / "scene", o.out / "train"
-    source, paths = o.recording_key(), o.paths
+    source, paths = o.recording_key(), recording.input_files()
 
     if o.calib is not None and str(o.calib) == CALIB_FROM_RECORDING:
         key = ["recording calibration (CameraInfo, /tf_static)", *source]
@@ -140,7 +142,7 @@ EVALUATED_FILES = ("model.pt", "mesh.ply", "collision.obj", "summary.json")
 def check_options(o: ReconstructOptions) -> Recording:
     """Refuse a missing or unreadable recording, a bad topic map or calibration before any stage
     starts; the recording, opened."""
-    recording = open_recording(o.paths, topic_map=parse_topic_map(o.topics), span=o.span)
+    recording = open_recording(o.paths, topic_map=parse_topic_map(o.topics), span=o.span, camera=o.camera)
     if o.calib is None and o.init is None:
         from rig.session import find_topics
         from rig.session.tf_static import tf_extrinsic

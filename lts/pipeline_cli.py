@@ -11,6 +11,7 @@ import typer
 from rig.cli_support import console, emit_json
 from rig.recording_options import (
     CALIB_TF_HELP,
+    CAMERA_OPTION,
     DURATION_OPTION,
     RECORDING_ARGUMENT,
     START_OPTION,
@@ -108,6 +109,7 @@ def reconstruct_command(
     max_size: int = MAX_SIZE_OPTION,
     downscale: int = DOWNSCALE_OPTION,
     topics: str = TOPICS_OPTION,
+    camera: int | None = CAMERA_OPTION,
     start: float = START_OPTION,
     duration: float | None = DURATION_OPTION,
     json_out: bool = typer.Option(
@@ -125,7 +127,7 @@ def reconstruct_command(
 
     options = ReconstructOptions(
         session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval,
-        max_size=max_size, downscale=downscale, topics=topics, span=time_span(start, duration),
+        max_size=max_size, downscale=downscale, topics=topics, span=time_span(start, duration), camera=camera,
     )  # fmt: skip
     result, _ = _run_stages(lambda: (reconstruct(options, _log), []))
     summary = _summary(result)

@@ -12,7 +12,13 @@ import typer
 
 from rig.cli_support import VERSION_OPTION, console, emit_json, run_app
 from rig.errors import InputError
-from rig.recording_options import DURATION_OPTION, RECORDING_ARGUMENT, START_OPTION, TOPICS_OPTION
+from rig.recording_options import (
+    CAMERA_OPTION,
+    DURATION_OPTION,
+    RECORDING_ARGUMENT,
+    START_OPTION,
+    TOPICS_OPTION,
+)
 
 app = typer.Typer(
     name="rig",
@@ -252,6 +258,7 @@ def check(
 def info(
     session: list[Path] = RECORDING_ARGUMENT,
     topics: str = TOPICS_OPTION,
+    camera: int | None = CAMERA_OPTION,
     start: float = START_OPTION,
     duration: float | None = DURATION_OPTION,
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
@@ -262,7 +269,7 @@ def info(
     from rig.session import parse_topic_map
     from rig.session.info import session_info
 
-    result = session_info(session, time_span(start, duration), parse_topic_map(topics))
+    result = session_info(session, time_span(start, duration), parse_topic_map(topics), camera)
     if json_out:
         emit_json(result)
         return

@@ -2,15 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
 
 from rig.calibration import Calibration
 from rig.errors import InputError
-from rig.messages import Frame
 from rig.session import Recording
-from rig.session.ros_messages import msg_to_frame
 from rig.trajectory import Trajectory
 from rig.transforms import distance_and_angle, invert
 from slam_bridge.scene import Keyframe
@@ -23,23 +19,10 @@ def lidar_clock(t_cam_ns: np.ndarray, calibration: Calibration) -> np.ndarray:
 
 def frame_stamps(reader: Recording, topic: str) -> np.ndarray:
     """Times ``(N,)`` int64 (``t_host``) of the frames on ``topic`` in file order, images not decoded."""
-    stamps = np.array([m.t_host for m in reader.messages([topic])], dtype=np.int64)
+    stamps = reader.stamps(topic)
     if stamps.size == 0:
         raise InputError(f"no images on {topic}", path=reader.path)
     return stamps
-
-
-def frames_at(reader: Recording, topic: str, indices: np.ndarray) -> Iterator[Frame]:
-    """The frames at ``indices`` ``(K,)`` (increasing positions on ``topic``, as in
-    :func:`frame_stamps`), decoding only those."""
-    wanted = set(np.asarray(indices).tolist())
-    for index, m in enumerate(reader.messages([topic])):
-        if index in wanted:
-            try:
-                yield msg_to_frame(m.msg, m.msgtype, m.t_host, m.t_device, topic)
-            except InputError as exc:
-                message = f"{exc.reason} (message at {m.t_host} ns)"
-                raise InputError(message, path=reader.path, field=exc.field or topic) from None
 
 
 def camera_poses(trajectory: Trajectory, calibration: Calibration, t_cam_ns: np.ndarray) -> np.ndarray:

@@ -10,6 +10,7 @@ import typer
 from rig.cli_support import console, emit_json
 from rig.recording_options import (
     CALIB_TF_HELP,
+    CAMERA_OPTION,
     DURATION_OPTION,
     IMAGE_TOPIC_OPTION,
     POINTS_TOPIC_OPTION,
@@ -62,6 +63,7 @@ def prepare_command(
     image_topic: str | None = IMAGE_TOPIC_OPTION,
     points_topic: str | None = POINTS_TOPIC_OPTION,
     topics: str = TOPICS_OPTION,
+    camera: int | None = CAMERA_OPTION,
     start: float = START_OPTION,
     duration: float | None = DURATION_OPTION,
     normals: Path | None = typer.Option(
@@ -93,7 +95,7 @@ def prepare_command(
     from slam_bridge.prepare_config import PrepareConfig
     from slam_bridge.scene_builder import build_scene
 
-    recording = open_from_options(session, topics, start, duration)
+    recording = open_from_options(session, topics, start, duration, camera)
     calibration = calibration_option(calib, recording, image=image_topic, points=points_topic)
     config = PrepareConfig(
         interval,

@@ -29,7 +29,6 @@ from slam_bridge.keyframe_normals import write_keyframe_normals
 from slam_bridge.keyframe_selection import (
     camera_poses,
     frame_stamps,
-    frames_at,
     make_keyframes,
     select_keyframes,
 )
@@ -73,7 +72,7 @@ def build_scene(
         frame_t[chosen], camera_poses(trajectory, calibration, frame_t[chosen]), config.test_every
     )
     done = _counter(progress, 3 * len(keyframes))
-    frames = frames_at(reader, topics.image, chosen)
+    frames = reader.frames_at(topics.image, chosen)
     write_keyframe_images(out, frames, keyframes, calibration.camera, target, reader.path, done)
     raycaster = mesh_raycaster(mesh)
     database = _matches(out, target, keyframes) if config.sparse_points or config.refine_poses else None

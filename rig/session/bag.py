@@ -52,6 +52,9 @@ class BagRecording(Recording):
     def truncation_reason(self) -> str:  # type: ignore[override]
         return self.files.truncation_reason
 
+    def input_files(self) -> list[Path]:
+        return list(self.paths)
+
     def metadata(self) -> dict[str, dict[str, Any]]:
         return {}
 

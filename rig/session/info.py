@@ -19,6 +19,7 @@ def session_info(
     paths: str | Path | Sequence[str | Path],
     span: TimeSpan | None = None,
     topic_map: dict[str, str] | None = None,
+    camera: int | None = None,
 ) -> dict[str, Any]:
     """The ``rig info --json`` object of a session or a bag (several paths: split bags).
 
@@ -31,7 +32,7 @@ def session_info(
     ``topic_map`` (None, and ``roles_problem`` says why, when the map leaves a role ambiguous; a
     map naming a missing topic raises :class:`~rig.errors.InputError`).
     """
-    reader = open_recording(paths, span=span, topic_map=topic_map)
+    reader = open_recording(paths, span=span, topic_map=topic_map, camera=camera)
     topics = reader.topics()
     try:
         roles, problem = asdict(find_topics(reader, require_points=False)), None

@@ -1,6 +1,7 @@
 """Opening any recording the offline commands take: our own session ``.mcap``, a ROS 1 ``.bag``
-(or the split files of one recording), a rosbag2 folder (sqlite3 or MCAP storage), or a bare MCAP
-file recorded by others. Bags are read in place, never copied or converted first."""
+(or the split files of one recording), a rosbag2 folder (sqlite3 or MCAP storage), a bare MCAP
+file recorded by others, or a KITTI raw drive folder. They are read in place, never copied or
+converted first."""
 
 from __future__ import annotations
 
@@ -10,11 +11,15 @@ from pathlib import Path
 from rig.errors import InputError
 from rig.session.bag import BagRecording
 from rig.session.bag_files import bag_format
+from rig.session.kitti_raw import KittiRecording, is_kitti_drive
 from rig.session.reader import SessionReader
 from rig.session.source import Recording, TimeSpan
 from rig.session.writer import SESSION_METADATA
 
-EXPECTED = "a session .mcap, a ROS 1 .bag (or its split files), a rosbag2 folder, or an MCAP file"
+EXPECTED = (
+    "a session .mcap, a ROS 1 .bag (or its split files), a rosbag2 folder, an MCAP file "
+    "or a KITTI raw drive folder"
+)
 
 
 def is_foreign_mcap(path: Path) -> bool:
@@ -36,11 +41,14 @@ def open_recording(
     *,
     topic_map: dict[str, str] | None = None,
     span: TimeSpan | None = None,
+    camera: int | None = None,
 ) -> Recording:
     """A reader of the recording at ``paths`` (one path, or the split files of one ROS 1 bag, or
     a folder holding only those): :class:`SessionReader` for our own sessions, else
-    :class:`BagRecording`. A ``.db3``/``.mcap`` file inside a rosbag2 folder opens the folder.
-    Raises :class:`InputError` naming the path when it is missing or not a recording."""
+    :class:`BagRecording`; a KITTI raw drive folder as :class:`KittiRecording` (``camera``: which
+    of its cameras is the image, default the first colour one). A ``.db3``/``.mcap`` file inside a
+    rosbag2 folder opens the folder. Raises :class:`InputError` naming the path when it is missing
+    or not a recording."""
     given = [Path(paths)] if isinstance(paths, str | Path) else [Path(p) for p in paths]
     if not given:
         raise InputError(f"no recording given; expected {EXPECTED}")
@@ -49,6 +57,14 @@ def open_recording(
         if not path.exists():
             raise InputError(f"no such session file or bag (expected {EXPECTED})", path=path)
         resolved += _resolved(path)
+    if len(given) == 1 and is_kitti_drive(given[0]):
+        return KittiRecording(given[0], span=span, topic_map=topic_map, camera=camera)
+    if camera is not None:
+        raise InputError(
+            "only a KITTI raw drive has numbered cameras; choose a bag's image with --topics image=TOPIC",
+            path=given[0],
+            field="--camera",
+        )
     formats = [bag_format(p) for p in resolved]
     for path, fmt in zip(resolved, formats, strict=True):
         if fmt is None:

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.messages import Frame, ImuSample, Scan
@@ -91,6 +93,10 @@ class Recording(ABC):
     truncated: bool = False
     truncation_reason: str = ""
 
+    def input_files(self) -> list[Path]:
+        """The files and folders the recording is read from (what a change to must redo its stages)."""
+        return [self.path]
+
     @abstractmethod
     def metadata(self) -> dict[str, dict[str, Any]]:
         """Metadata records by name (empty for bags)."""
@@ -129,6 +135,23 @@ class Recording(ABC):
 
     def imu(self, topic: str) -> Iterator[ImuSample]:
         return self._converted(topic, lambda m: rm.msg_to_imu(m.msg, m.t_host, m.t_device, topic))
+
+    def stamps(self, topic: str) -> np.ndarray:
+        """Times ``(N,)`` int64 ns of the messages on ``topic`` within :attr:`span`, in file order."""
+        return np.array([m.t_host for m in self.messages([topic])], dtype=np.int64)
+
+    def frames_at(self, topic: str, indices: np.ndarray) -> Iterator[Frame]:
+        """The frames at ``indices`` ``(K,)`` (increasing positions among :meth:`stamps`),
+        decoding only those."""
+        wanted = set(np.asarray(indices).tolist())
+        selected = (m for index, m in enumerate(self.messages([topic])) if index in wanted)
+        for m in selected:
+            try:
+                yield rm.msg_to_frame(m.msg, m.msgtype, m.t_host, m.t_device, topic)
+            except InputError as exc:
+                raise InputError(
+                    f"{exc.reason} (message at {m.t_host} ns)", path=self.path, field=exc.field or topic
+                ) from None
 
     def camera_model(self, topic: str) -> CameraModel:
         """The camera model of the first ``CameraInfo`` on ``topic`` (whole recording: a camera

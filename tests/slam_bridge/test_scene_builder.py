@@ -12,7 +12,7 @@ from rig.trajectory_io import read_tum, write_tum
 from rig.transforms import invert, transform_points
 from slam_bridge.depth_image import remove_occluded, zbuffer_depth
 from slam_bridge.keyframe_lidar import keyframe_windows
-from slam_bridge.keyframe_selection import frame_stamps, frames_at
+from slam_bridge.keyframe_selection import frame_stamps
 from slam_bridge.prepare_config import PrepareConfig
 from slam_bridge.scene import load_scene
 from slam_bridge.scene_builder import build_scene
@@ -126,7 +126,7 @@ def test_frame_stamps_and_chosen_frames_without_decoding_the_rest(quick_room: Pa
     topic = "/camera/image/compressed"
     frames = list(reader.frames(topic))
     np.testing.assert_array_equal(frame_stamps(reader, topic), [f.t_host for f in frames])
-    chosen = list(frames_at(reader, topic, np.array([1, 4])))
+    chosen = list(reader.frames_at(topic, np.array([1, 4])))
     assert [f.t_host for f in chosen] == [frames[1].t_host, frames[4].t_host]
     np.testing.assert_array_equal(chosen[1].image, frames[4].image)
 
