@@ -9,6 +9,9 @@ pictures of the report.
   against the truth moved into the scene frame, both culled to the training frusta (the contract's
   ``chamfer_m``, ``fscore``, ...), and again with the truth also culled to what the training cameras
   see (:func:`~eval.geometry.visible_mask`; the ``*_visible`` fields).
+- **Geometry against the test keyframes' LiDAR** (always; :mod:`eval.lidar_agreement`): the mesh's
+  precision, recall and F-score at 20 cm against the held-out returns, the pseudo ground truth of a
+  real recording (the ``lidar_*`` fields).
 - **Leaned views** (:func:`~eval.leaned_poses` of the test poses): a hole is a pixel where the
   reference has a surface and the model's accumulated alpha is < 0.5. The reference is the ground
   truth when given, otherwise the scene's SLAM mesh (``hole_reference`` says which).
@@ -34,6 +37,7 @@ from scipy.spatial import cKDTree
 
 from eval.geometry import DEFAULT_SAMPLES
 from eval.leaned_views import hit_mask, leaned_poses
+from eval.lidar_agreement import lidar_agreement
 from eval.photometric import lpips, psnr, ssim
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
@@ -76,6 +80,15 @@ GT_FIELDS = (
     "fall_through_rate",
     "height_error_mean_m",
     "height_error_max_m",
+)
+#: Fields of the mesh against the test keyframes' LiDAR (:mod:`eval.lidar_agreement`).
+LIDAR_FIELDS = (
+    "lidar_fscore",
+    "lidar_precision",
+    "lidar_recall",
+    "lidar_distance_median_m",
+    "lidar_threshold_m",
+    "lidar_points",
 )
 EVAL_FILE = "eval.json"
 MESH_FILE = "mesh.ply"
@@ -262,6 +275,22 @@ def _geometry(
     return PointDistances(rec, to_gt, gt, to_rec, float(threshold_m), truth.T_gt_world)
 
 
+def _lidar(
+    mesh_path: Path, scene: Scene, tests: list[Keyframe], metrics: dict, reasons: dict, log: Callable
+) -> None:
+    """The ``lidar_*`` fields: the mesh against the test keyframes' LiDAR returns."""
+    metrics.update(dict.fromkeys(LIDAR_FIELDS))
+    if not mesh_path.is_file():
+        reasons["lidar_fscore"] = f"the run has no exported mesh ({mesh_path})"
+        return
+    log(f"comparing {mesh_path.name} with the LiDAR returns of the {len(tests)} test keyframes")
+    agreement = lidar_agreement(load_mesh(mesh_path), scene, tests)
+    if agreement is None:
+        reasons["lidar_fscore"] = "the test keyframes have no LiDAR returns in view"
+    else:
+        metrics.update(agreement.metrics())
+
+
 def _scene_up(truth) -> np.ndarray:
     """The ground truth's up axis expressed in the scene (SLAM map) frame."""
     up = truth.T_gt_world[:3, :3].T @ GT_UP
@@ -375,6 +404,7 @@ def evaluate_run(
     else:
         log(f"comparing {mesh_path.name} with the ground truth ({samples} samples each)")
         points = _geometry(load_mesh(mesh_path), scene, truth, threshold_m, samples, metrics)
+    _lidar(mesh_path, scene, tests, metrics, reasons, log)
     if truth is not None and physics:
         log("dropping physics probes on the collision mesh and the ground truth")
         drops = _physics(run_dir, scene, truth, metrics, reasons)

@@ -49,6 +49,9 @@ def evaluate_run_command(
         f"LiDAR depth error median {depth}",
         f"geometry at {m['threshold_m']:g} m: F-score {_text(m['fscore'])} (visible GT "
         f"{_text(m['fscore_visible'])}), Chamfer-L1 {_text(m['chamfer_m'], ' cm', 100, 2)}",
+        f"against the test keyframes' LiDAR at {_text(m['lidar_threshold_m'], ' m', digits=2)}: F-score "
+        f"{_text(m['lidar_fscore'])} (precision {_text(m['lidar_precision'])}, recall "
+        f"{_text(m['lidar_recall'])}), median distance {_text(m['lidar_distance_median_m'], ' cm', 100, 1)}",
         f"leaned-view holes {holes} (against the {m['hole_reference']}); physics fall-through "
         f"{_text(m['fall_through_rate'], ' %', 100, 1)}, height error mean "
         f"{_text(m['height_error_mean_m'], ' cm', 100, 2)}",

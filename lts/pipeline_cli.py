@@ -23,8 +23,8 @@ from slam_bridge.prepare_cli import DOWNSCALE_OPTION, MAX_SIZE_OPTION
 if TYPE_CHECKING:
     from lts.pipeline import ReconstructResult
 
-SUMMARY_KEYS = ("psnr", "ssim", "lpips", "fscore", "precision", "recall", "chamfer_m", "hole_fraction_leaned",
-                "n_triangles", "train_seconds")  # fmt: skip
+SUMMARY_KEYS = ("psnr", "ssim", "lpips", "fscore", "precision", "recall", "chamfer_m", "lidar_fscore",
+                "hole_fraction_leaned", "n_triangles", "train_seconds")  # fmt: skip
 
 
 def _log(message: str) -> None:
