@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 import pytest
 from bag_layouts import LAYOUTS
+from truth_slam import write_truth_slam
 
 from slam_bridge.scene import load_scene
 
@@ -29,12 +30,7 @@ def prepare(recording: Path, truth: Path, slam: Path, out: Path) -> Path:
 
 @pytest.fixture(scope="module")
 def truth_slam(virtual_rig_scene: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A SLAM folder of the true mesh and LiDAR trajectory."""
-    out = tmp_path_factory.mktemp("truth_slam")
-    truth = virtual_rig_scene / "ground_truth"
-    (out / "mesh.ply").write_bytes((truth / "mesh.ply").read_bytes())
-    (out / "trajectory.tum").write_bytes((truth / "trajectory_lidar.tum").read_bytes())
-    return out
+    return write_truth_slam(virtual_rig_scene, tmp_path_factory.mktemp("truth_slam"))
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 import pytest
 from kitti_layout import R_RECT_00, write_calibration, write_kitti_drive
+from truth_slam import write_truth_slam
 
 from rig.calibration import Calibration, load_calibration
 from rig.camera import CameraModel
@@ -146,11 +147,7 @@ def test_camera_choice(drive: Path) -> None:
 
 @pytest.fixture(scope="module")
 def truth_slam(spinning_room: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A SLAM folder of the true mesh and LiDAR trajectory."""
-    out = tmp_path_factory.mktemp("truth_slam")
-    shutil.copyfile(spinning_room / "ground_truth" / "mesh.ply", out / "mesh.ply")
-    shutil.copyfile(spinning_room / "ground_truth" / "trajectory_lidar.tum", out / "trajectory.tum")
-    return out
+    return write_truth_slam(spinning_room, tmp_path_factory.mktemp("truth_slam"))
 
 
 def _unlink_first_sweep(drive: Path) -> None:

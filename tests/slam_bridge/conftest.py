@@ -3,6 +3,7 @@
 from pathlib import Path
 
 import pytest
+from truth_slam import write_truth_slam
 
 
 def simulate_room(out: Path, **overrides) -> Path:
@@ -27,9 +28,4 @@ def quick_room(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="session")
 def gt_slam_dir(quick_room: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A SLAM folder made of the ground truth: the true mesh and the true LiDAR trajectory."""
-    import shutil
-
-    out = tmp_path_factory.mktemp("gt_slam")
-    shutil.copyfile(quick_room / "ground_truth" / "mesh.ply", out / "mesh.ply")
-    shutil.copyfile(quick_room / "ground_truth" / "trajectory_lidar.tum", out / "trajectory.tum")
-    return out
+    return write_truth_slam(quick_room, tmp_path_factory.mktemp("gt_slam"))
