@@ -121,6 +121,13 @@ def reconstruct(o: ReconstructOptions, log: Callable[[str], None] = print) -> Re
     )  # fmt: skip
 
     loaded_scene = cache(lambda: load_scene(scene))  # training and evaluation read its files once
+    if not loaded_scene().split("test"):
+        raise InputError(
+            f"the scene has {len(loaded_scene().keyframes)} keyframes and none held out for testing, which "
+            "the evaluate stage needs; take keyframes more often (--keyframe-interval S)",
+            path=scene / "scene.json",
+            field="split",
+        )
     config = train_config(o)
     stages.run(
         "train", ["lts train", *train_key(o)], [scene], train / "model.pt",

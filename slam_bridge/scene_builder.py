@@ -8,6 +8,7 @@ points), keyframe LiDAR (:mod:`slam_bridge.keyframe_lidar`) and normals
 
 from __future__ import annotations
 
+import logging
 import shutil
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, replace
@@ -38,6 +39,7 @@ from slam_bridge.scene import SPARSE_POINTS_FILE, Keyframe, write_scene_index
 from slam_bridge.slam_dir import MESH_FILE, load_slam_dir
 from slam_bridge.sparse_points import triangulate_keyframes
 
+log = logging.getLogger(__name__)
 DEFAULT_CONFIG = PrepareConfig()
 
 
@@ -71,6 +73,13 @@ def build_scene(
     keyframes = make_keyframes(
         frame_t[chosen], camera_poses(trajectory, calibration, frame_t[chosen]), config.test_every
     )
+    if config.test_every and not any(k.split == "test" for k in keyframes):
+        log.warning(
+            "%d keyframes, none held out for testing (every %d-th is): lts eval will have no test view; "
+            "take keyframes more often (--keyframe-interval) or hold out more (--test-every)",
+            len(keyframes),
+            config.test_every,
+        )
     done = _counter(progress, 3 * len(keyframes))
     frames = reader.frames_at(topics.image, chosen)
     write_keyframe_images(out, frames, keyframes, calibration.camera, target, reader.path, done)

@@ -67,6 +67,14 @@ def open_recording(
         )
     formats = [bag_format(p) for p in resolved]
     for path, fmt in zip(resolved, formats, strict=True):
+        if (
+            fmt is None
+            and path.is_dir()
+            and (drives := sorted(d.name for d in path.iterdir() if is_kitti_drive(d)))
+        ):
+            raise InputError(
+                f"a folder of KITTI raw drives; give one of them: {', '.join(drives)}", path=path
+            )
         if fmt is None:
             what = "a folder without metadata.yaml" if path.is_dir() else "bad magic bytes"
             raise InputError(f"not a recording: {what} (expected {EXPECTED})", path=path)

@@ -211,3 +211,14 @@ def test_a_kitti_drive_reconstructs_with_its_own_calibration(
     assert result.returncode == 0, result.stderr[-2000:]
     metrics = json.loads(result.stdout)
     assert metrics["fscore"] > 0.8 and metrics["psnr"] > 12
+
+
+def test_a_drive_too_short_for_a_test_view_stops_before_training(drive: Path, tmp_path: Path) -> None:
+    """3 s at one keyframe per 0.5 s holds no 8th keyframe out: lts reconstruct says so after
+    prepare instead of failing at evaluate after the whole training."""
+    args = [LTS, "reconstruct", drive, "--calib", "tf", "--out", tmp_path / "run", "--preset", "fast"]
+    result = subprocess.run(args, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2, result.stderr[-2000:]
+    last_line = result.stderr.strip().splitlines()[-1]
+    assert last_line.endswith("take keyframes more often (--keyframe-interval S)")
+    assert not (tmp_path / "run" / "train").exists()
