@@ -40,6 +40,9 @@ def information_time(source: np.ndarray, points: np.ndarray, times: np.ndarray) 
         return float(np.mean(times[rows]))
     return float(np.average(times[rows], weights=weight))
 
+#: KISS-ICP threads: one, for the same poses bit for bit on every run (see SweepOdometry).
+ODOMETRY_THREADS = 1
+
 
 class SweepOdometry:
     """KISS-ICP odometry (de-skew off, :data:`ODOMETRY_POINTS_PER_VOXEL`) fed one sweep at a time.
@@ -59,6 +62,12 @@ class SweepOdometry:
         config.data.deskew = False
         config.mapping.voxel_size = voxel_size
         config.mapping.max_points_per_voxel = ODOMETRY_POINTS_PER_VOXEL
+        # One thread: KISS-ICP's parallel reductions sum in a thread-dependent order, so with two
+        # threads the same sweeps gave poses differing by ~5e-16 per run, which registration then
+        # amplifies (the trajectory, the mesh and training all changed from run to run). Its C++
+        # sets the thread limit once per process (a static tbb::global_control at the first
+        # registration built), so every odometry here must ask for the same count. Costs ~20 %.
+        config.registration.max_num_threads = ODOMETRY_THREADS
         self._icp = KissICP(config)
 
     def register(self, points: np.ndarray, point_time_s: np.ndarray) -> tuple[float, np.ndarray]:

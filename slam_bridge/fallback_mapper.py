@@ -145,10 +145,25 @@ class _TsdfIntegrator:
             )
 
     def mesh(self) -> trimesh.Trimesh:
+        """The surface in canonical order (Open3D's hash map hands out blocks in a different order
+        on every run: the same triangles, numbered differently)."""
         extracted = self.grid.extract_triangle_mesh(weight_threshold=self.config.min_weight)
         vertices = extracted.vertex.positions.numpy().astype(np.float64)
         faces = extracted.triangle.indices.numpy().astype(np.int64)
-        return trimesh.Trimesh(vertices, faces, process=False)
+        return trimesh.Trimesh(*canonical_order(vertices, faces), process=False)
+
+
+def canonical_order(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``vertices`` ``(V, 3)`` sorted by x, y, z and ``faces`` ``(F, 3)`` renumbered to match, each
+    face turned to start at its smallest index (winding kept) and the faces sorted: one numbering
+    for one surface, whatever order it was built in."""
+    order = np.lexsort(vertices.T[::-1])
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    faces = rank[faces]
+    first = np.argmin(faces, axis=1)
+    faces = np.take_along_axis(faces, (first[:, None] + np.arange(3)) % 3, axis=1)
+    return vertices[order], faces[np.lexsort(faces.T[::-1])]
 
 
 def fill_small_holes(depth: np.ndarray, agree: float = 0.05) -> np.ndarray:

@@ -1,4 +1,5 @@
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -11,8 +12,10 @@ from eval.geometry import compare_meshes
 from eval.trajectory_metrics import absolute_trajectory_error
 from rig.session import SessionReader
 from rig.trajectory_io import read_tum
-from slam_bridge.fallback_mapper import cube_depth_images, fill_small_holes, run_mapper
+from slam_bridge.fallback_mapper import canonical_order, cube_depth_images, fill_small_holes, run_mapper
 from slam_bridge.slam_dir import load_slam_dir
+
+LTS = Path(sys.executable).parent / "lts"
 
 
 def test_cube_map_puts_each_direction_on_its_face() -> None:
@@ -68,3 +71,37 @@ def test_mapper_on_the_default_room_meets_the_accuracy_targets(tmp_path: Path) -
     mesh.apply_transform(ate.T_ref_est)
     metrics = compare_meshes(mesh, trimesh.load(tmp_path / "ground_truth" / "mesh.ply", process=False), 0.1)
     assert metrics.fscore > 0.8
+
+
+def test_canonical_order_numbers_one_surface_one_way() -> None:
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    rng = np.random.default_rng(0)
+    shuffle, turn = rng.permutation(len(mesh.vertices)), rng.integers(0, 3, len(mesh.faces))
+    inverse = np.argsort(shuffle)
+    faces = np.take_along_axis(inverse[mesh.faces], (turn[:, None] + np.arange(3)) % 3, axis=1)
+    faces = faces[rng.permutation(len(faces))]
+    want = canonical_order(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+    got = canonical_order(np.asarray(mesh.vertices)[shuffle], faces)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    assert trimesh.Trimesh(*got).is_winding_consistent and trimesh.Trimesh(*got).volume > 0
+
+
+def test_lts_slam_run_is_the_same_bit_for_bit_with_one_or_two_threads(
+    quick_room: Path, tmp_path: Path
+) -> None:
+    """KISS-ICP on one thread and the TSDF mesh in canonical order: the same trajectory and mesh
+    files whatever the thread count (OpenMP for the TSDF) and however often it runs."""
+    outputs = []
+    for threads in ("1", "2", "2"):
+        out = tmp_path / f"slam_{len(outputs)}"
+        env = {**os.environ, "OMP_NUM_THREADS": threads}
+        result = subprocess.run(
+            [LTS, "slam", "run", quick_room / "session.mcap", "--out", out],
+            capture_output=True,
+            text=True,
+            env=env,
+        )
+        assert result.returncode == 0, result.stderr[-2000:]
+        outputs.append([(out / name).read_bytes() for name in ("trajectory.tum", "mesh.ply")])
+    assert outputs[0] == outputs[1] == outputs[2]
