@@ -68,6 +68,19 @@ def _show_library_logs() -> None:
         logger.setLevel(logging.INFO)
 
 
+def _print_usage_error(exc: Exception) -> None:
+    """Click's short usage of the command (when the error knows it), then the error in one line;
+    nothing more for a group called without a command, whose help is already printed."""
+    message = exc.format_message()  # type: ignore[attr-defined]
+    if not message:
+        return
+    ctx = getattr(exc, "ctx", None)
+    if ctx is not None:
+        console.print(ctx.get_usage(), highlight=False, markup=False)
+        console.print(f"Try '{ctx.command_path} --help' for help.", highlight=False, markup=False)
+    console.print(f"error: {message}", highlight=False, markup=False)
+
+
 def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
     """Wrap a Typer app into a console-script entry point that reports bad input in one line."""
 
@@ -90,7 +103,7 @@ def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
             console.print("interrupted")
             sys.exit(130)
         except _USAGE_ERRORS as exc:  # they carry their own message and exit code
-            console.print(f"error: {exc.format_message()}", highlight=False, markup=False)
+            _print_usage_error(exc)
             sys.exit(exc.exit_code)
         except OSError as exc:  # a full disk, a vanished folder: say which file, no traceback
             where = f"{exc.filename}: " if exc.filename else ""

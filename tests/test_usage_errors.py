@@ -1,0 +1,85 @@
+"""Every ``lts`` and ``rig`` command answers a usage mistake (an unknown option, a missing
+argument) with Click's short usage and a one-line error, exit status 2, no traceback, and with
+``--json`` nothing on stdout. The commands are found by walking the apps, so a new command is
+covered without editing this test."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+import typer.main
+
+from lts.cli import app as lts_app
+from rig.cli import app as rig_app
+
+BIN = Path(sys.executable).parent
+
+
+def _commands() -> list[tuple[list[str], bool, bool]]:
+    """``(command words, takes --json, has a required parameter)`` of every leaf command."""
+
+    def walk(command, path):
+        if getattr(command, "commands", None):
+            for name, sub in command.commands.items():
+                yield from walk(sub, [*path, name])
+        else:
+            json_option = any("--json" in getattr(p, "opts", []) for p in command.params)
+            yield path, json_option, any(p.required for p in command.params)
+
+    return [
+        c
+        for name, app in (("lts", lts_app), ("rig", rig_app))
+        for c in walk(typer.main.get_command(app), [name])
+    ]
+
+
+def _mistakes() -> list[tuple[list[str], str]]:
+    """Each command line to try and the words its error must contain."""
+    cases = []
+    for words, json_option, required in _commands():
+        cases.append(([*words, "--no-such-option"], "No such option"))
+        if json_option:
+            cases.append(([*words, "--json", "--no-such-option"], "No such option"))
+        if required:
+            cases.append((words, "Missing"))
+            if json_option:
+                cases.append(([*words, "--json"], "Missing"))
+    return cases
+
+
+def _run(args: list[str]) -> subprocess.CompletedProcess:
+    return subprocess.run([BIN / args[0], *args[1:]], capture_output=True, text=True, timeout=120)
+
+
+def test_every_usage_mistake_is_short_usage_and_one_error_line() -> None:
+    cases = _mistakes()
+    assert len(cases) > 60  # every command of both apps
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(_run, [args for args, _ in cases]))
+    failures = []
+    for (args, says), result in zip(cases, results, strict=True):
+        lines = result.stderr.strip().splitlines()
+        ok = (
+            result.returncode == 2
+            and result.stdout == ""
+            and "Traceback" not in result.stderr
+            and len(lines) == 3
+            and lines[0].startswith(f"Usage: {args[0]} ")
+            and lines[1].startswith("Try '")
+            and lines[2].startswith("error: ")
+            and says in lines[2]
+        )
+        if not ok:
+            failures.append(f"{' '.join(args)} -> exit {result.returncode}: {result.stderr[-300:]!r}")
+    assert not failures, "\n".join(failures)
+
+
+@pytest.mark.parametrize("args", [["lts", "no-such-command"], ["rig", "no-such-command"]])
+def test_an_unknown_command_is_a_usage_error(args: list[str]) -> None:
+    result = _run(args)
+    assert result.returncode == 2 and "No such command 'no-such-command'" in result.stderr
+    assert "Traceback" not in result.stderr
