@@ -16,6 +16,9 @@ _EXPORTS = {
     "frustum_mask": "eval.geometry",
     "sample_surface": "eval.geometry",
     "LpipsResult": "eval.photometric",
+    "LpipsAlex": "eval.lpips_net",
+    "load_lpips": "eval.lpips_weights",
+    "download_weights": "eval.lpips_weights",
     "lpips": "eval.photometric",
     "psnr": "eval.photometric",
     "ssim": "eval.photometric",
@@ -32,6 +35,8 @@ _EXPORTS = {
     "RunEvaluation": "eval.run_eval",
     "evaluate_run": "eval.run_eval",
     "write_eval_json": "eval.run_eval",
+    "RunInputs": "eval.run_inputs",
+    "resolve_run_inputs": "eval.run_inputs",
     "write_report": "eval.report",
 }
 __all__, __getattr__ = lazy_exports(__name__, _EXPORTS)

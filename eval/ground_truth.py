@@ -1,9 +1,10 @@
-"""Comparing a reconstruction with a virtual-rig ground truth (``lts sim OUT/ground_truth``).
+"""Comparing a reconstruction with ground truth: a virtual-rig ground truth
+(``lts sim OUT/ground_truth``) or a mesh already in the scene's frame (a survey of the site).
 
-A reconstruction lives in its SLAM map frame; the ground truth in the simulator's world. The two
-are related by the rigid transform that takes the keyframe camera poses onto the true camera
-poses at the same stamps (:func:`~eval.trajectory_metrics.pose_alignment`, orientations
-included, so a near-straight path does not leave a rotation free).
+A reconstruction lives in its SLAM map frame; a virtual-rig ground truth in the simulator's world.
+The two are related by the rigid transform that takes the keyframe camera poses onto the true
+camera poses at the same stamps (:func:`~eval.trajectory_metrics.pose_alignment`, orientations
+included, so a near-straight path does not leave a rotation free). A mesh file is used as it is.
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ from slam_bridge.scene import Scene
 
 GT_MESH = "mesh.ply"
 GT_CAMERA_TRAJECTORY = "trajectory.tum"
+#: Mesh files ``--gt`` takes as a ground truth in the scene's frame.
+MESH_SUFFIXES = (".ply", ".obj", ".glb")
 
 
 @dataclass(frozen=True)
@@ -37,20 +40,22 @@ class GroundTruth:
 
     Attributes:
         mesh: the ground-truth mesh moved into the scene's world frame.
-        T_gt_world: ``(4, 4)`` scene world → ground-truth world.
-        pose_rmse_m: RMS position difference of the aligned keyframe poses (how well they agree).
+        T_gt_world: ``(4, 4)`` scene world → ground-truth world (z-up); the identity for a mesh
+            file, whose frame is the scene's (a LiDAR map frame, z up).
+        pose_rmse_m: RMS position difference of the aligned keyframe poses (how well they agree);
+            ``None`` for a mesh file, which is not aligned.
     """
 
     mesh: trimesh.Trimesh
     T_gt_world: np.ndarray
-    pose_rmse_m: float
+    pose_rmse_m: float | None
 
 
 def ground_truth_dir(path: str | Path) -> Path:
-    """The folder holding ``mesh.ply`` and ``trajectory.tum``: ``path`` itself, its
-    ``ground_truth/`` sub-folder (a simulation's output folder), or the mesh file's folder."""
+    """The folder holding ``mesh.ply`` and ``trajectory.tum``: ``path`` itself or its
+    ``ground_truth/`` sub-folder (a simulation's output folder)."""
     path = Path(path)
-    for candidate in (path, path / "ground_truth", path.parent):
+    for candidate in (path, path / "ground_truth"):
         if (candidate / GT_MESH).is_file() and (candidate / GT_CAMERA_TRAJECTORY).is_file():
             return candidate
     raise InputError(
@@ -60,9 +65,34 @@ def ground_truth_dir(path: str | Path) -> Path:
     )
 
 
+def ground_truth_mesh_file(path: str | Path) -> Path:
+    """``path`` checked to be a mesh file ``--gt`` takes (its suffix; :func:`load_mesh` reads it)."""
+    path = Path(path)
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        kinds = "/".join(suffix[1:].upper() for suffix in MESH_SUFFIXES)
+        raise InputError(
+            f"expected a mesh file ({kinds}) in the scene's frame or a ground-truth folder "
+            "(lts sim OUT/ground_truth)",
+            path=path,
+            field="--gt",
+        )
+    return path
+
+
+def is_rig_ground_truth_mesh(path: Path) -> bool:
+    """Whether ``path`` is the ``mesh.ply`` of a virtual-rig ground-truth folder (aligned as its
+    folder is, not taken as already in the scene's frame)."""
+    return path.name == GT_MESH and (path.parent / GT_CAMERA_TRAJECTORY).is_file()
+
+
 def load_ground_truth(scene: Scene, path: str | Path) -> GroundTruth:
-    """Load a virtual-rig ground truth and move its mesh into ``scene``'s world frame."""
-    folder = ground_truth_dir(path)
+    """Load a ground truth in ``scene``'s world frame: a virtual-rig ground-truth folder (or its
+    parent, or its own ``mesh.ply``) moved there by the keyframe poses, or any other mesh file
+    (PLY/OBJ/GLB) as it is."""
+    path = Path(path)
+    if path.is_file() and not is_rig_ground_truth_mesh(path):
+        return GroundTruth(load_mesh(ground_truth_mesh_file(path)), np.eye(4), None)
+    folder = ground_truth_dir(path.parent if path.is_file() else path)
     truth = read_tum(folder / GT_CAMERA_TRAJECTORY)
     stamps = np.array([k.t_ns for k in scene.keyframes], dtype=np.int64)
     covered = truth.covers(stamps)

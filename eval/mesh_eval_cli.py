@@ -1,4 +1,4 @@
-"""``lts eval``: a training run (``lts eval RUN_DIR``, see :mod:`eval.run_eval_cli`) or one mesh
+"""``lts eval``: a training run (``lts eval RUN``, see :mod:`eval.run_eval_cli`) or one mesh
 against another (``lts eval --mesh REC --gt GT``)."""
 
 from __future__ import annotations
@@ -13,40 +13,52 @@ from rig.errors import InputError
 
 def eval_command(
     run_dir: Path | None = typer.Argument(
-        None, help="Training run folder (lts train --out); leave out to compare --mesh with --gt."
+        None,
+        metavar="RUN",
+        help="Training run folder (lts train --out) or lts reconstruct --out folder (its train/); leave "
+        "out to compare --mesh with --gt.",
     ),
     mesh: Path | None = typer.Option(
-        None, "--mesh", help="Reconstructed mesh (PLY/OBJ/GLB), instead of RUN_DIR."
+        None, "--mesh", help="Reconstructed mesh (PLY/OBJ/GLB), instead of RUN."
     ),
     gt: Path | None = typer.Option(
         None,
         "--gt",
-        help="With --mesh: the ground-truth mesh. With RUN_DIR: a virtual-rig ground-truth folder "
-        "(lts sim OUT/ground_truth) or its parent OUT.",
+        help="With --mesh: the ground-truth mesh. With RUN: a mesh file (PLY/OBJ/GLB) already in the "
+        "scene's frame, or a virtual-rig ground-truth folder (lts sim OUT/ground_truth) or its parent OUT, "
+        "aligned by the keyframe poses.",
     ),
     threshold: float = typer.Option(0.1, "--threshold", help="F-score distance threshold in metres."),
     samples: int = typer.Option(200_000, "--samples", help="Points sampled by area on each mesh."),
     seed: int = typer.Option(0, "--seed", help="Seed of the surface sampling (--mesh form)."),
     report: bool = typer.Option(
-        True, "--report/--no-report", help="RUN_DIR form: write RUN_DIR/report.html."
+        True, "--report/--no-report", help="RUN form: write report.html in the run folder."
     ),
     physics: bool = typer.Option(
-        True, "--physics/--no-physics", help="RUN_DIR form: run the pybullet probe test (with --gt)."
+        True, "--physics/--no-physics", help="RUN form: run the pybullet probe test (with --gt)."
     ),
-    device: str = typer.Option("cpu", "--device", help="RUN_DIR form: cpu or cuda, where the model renders."),
+    device: str = typer.Option("cpu", "--device", help="RUN form: cpu or cuda, where the model renders."),
+    lpips_weights: Path | None = typer.Option(
+        None,
+        "--lpips-weights",
+        help="RUN form: LPIPS weights file (lts weights download writes one to the cache, which is the "
+        "default); without weights LPIPS is null.",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Evaluate a training run (photometry, geometry, leaned-view holes, physics, report), or compare
     a mesh with ground truth (--mesh REC --gt GT: Chamfer-L1 and precision/recall/F-score, no culling).
 
-    RUN_DIR writes RUN_DIR/eval.json and RUN_DIR/report.html.
+    RUN writes eval.json and report.html in the training run folder.
     """
     if run_dir is not None:
         if mesh is not None:
-            raise InputError("give either RUN_DIR or --mesh, not both", field="--mesh")
+            raise InputError("give either RUN or --mesh, not both", field="--mesh")
         from eval.run_eval_cli import evaluate_run_command
 
-        evaluate_run_command(run_dir, gt, threshold, samples, report, physics, device, json_out)
+        evaluate_run_command(
+            run_dir, gt, threshold, samples, report, physics, device, lpips_weights, json_out
+        )
         return
     if mesh is None:
         raise InputError("give a run folder (lts eval RUN_DIR) or a mesh (lts eval --mesh REC --gt GT)")

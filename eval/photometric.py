@@ -1,4 +1,4 @@
-"""Photometric metrics on held-out views: PSNR, SSIM and (when available locally) LPIPS.
+"""Photometric metrics on held-out views: PSNR, SSIM and (when its weights are on this machine) LPIPS.
 
 Images are float tensors in [0, 1] of shape ``(3, H, W)`` or ``(B, 3, H, W)``; numpy arrays are
 accepted too (``(H, W, 3)`` uint8 or float).
@@ -6,9 +6,7 @@ accepted too (``(H, W, 3)`` uint8 or float).
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -17,6 +15,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from eval.lpips_net import MIN_SIDE, LpipsAlex
+from eval.lpips_weights import HOW_TO_GET, load_lpips
 from rig.errors import InputError
 
 #: SSIM window as in 3DGS evaluation (and scikit-image with ``gaussian_weights=True``).
@@ -133,35 +133,27 @@ class LpipsResult:
     reason: str = ""
 
 
-def _lpips_weights_present(net: str) -> str | None:
-    """Path of the torchvision backbone weights in the user's torch cache, if present."""
-    hub = Path(os.environ.get("TORCH_HOME", Path.home() / ".cache" / "torch")) / "hub" / "checkpoints"
-    prefix = {"alex": "alexnet-", "vgg": "vgg16-"}[net]
-    found = sorted(hub.glob(prefix + "*.pth")) if hub.is_dir() else []
-    return str(found[0]) if found else None
-
-
 def lpips(
     rendered: np.ndarray | torch.Tensor,
     target: np.ndarray | torch.Tensor,
-    net: Literal["alex", "vgg"] = "alex",
+    weights: str | Path | LpipsAlex | None = None,
 ) -> LpipsResult:
-    """LPIPS distance with the ``lpips`` package, only from weights already on this machine.
+    """LPIPS v0.1 "alex" distance (mean over the batch; :mod:`eval.lpips_net`).
 
-    Never downloads: when the package, torchvision or the backbone weights are missing, returns
-    ``value=None`` with the reason (never 0, never a random network).
+    ``weights``: a loaded network, a weights file, or ``None`` for the places
+    :func:`eval.lpips_weights.load_lpips` looks at. Never downloads: without weights, returns
+    ``value=None`` with the reason saying how to get them (never 0, never a random network).
+    A weights file that is not LPIPS weights raises :class:`~rig.errors.InputError`.
     """
-    for module in ("lpips", "torchvision"):
-        if importlib.util.find_spec(module) is None:
-            return LpipsResult(None, f"the '{module}' package is not installed")
-    if _lpips_weights_present(net) is None:
-        return LpipsResult(
-            None, f"{net} backbone weights are not in the torch cache (no download at run time)"
-        )
-    import lpips as lpips_package
-
-    model = lpips_package.LPIPS(net=net, verbose=False, pretrained=True).eval()
+    network = weights if isinstance(weights, LpipsAlex) else load_lpips(weights)
+    if network is None:
+        return LpipsResult(None, HOW_TO_GET)
     a, b = as_image_tensor(rendered).float(), as_image_tensor(target).float()
     _check_pair(a, b)
+    if a.shape[1] != 3 or min(a.shape[-2:]) < MIN_SIDE:
+        raise InputError(
+            f"LPIPS needs RGB images of at least {MIN_SIDE}x{MIN_SIDE} pixels, got {tuple(a.shape[1:])}",
+            field="images",
+        )
     with torch.no_grad():
-        return LpipsResult(float(model(a * 2 - 1, b * 2 - 1).mean()))
+        return LpipsResult(float(network(a, b).mean()))

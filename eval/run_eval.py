@@ -2,13 +2,14 @@
 pictures of the report.
 
 - **Photometry** on the held-out keyframes: the final model (``RUN_DIR/model.pt``) rendered at each
-  test pose, PSNR / SSIM / LPIPS against the captured image (mean over views), and the error of the
-  rendered depth (``depth / alpha``) against the LiDAR depth over pixels with a return and
-  ``alpha > 0.5`` (pooled over views).
-- **Geometry** (needs ground truth, :mod:`eval.ground_truth`): the exported ``RUN_DIR/mesh.ply``
-  against the truth moved into the scene frame, both culled to the training frusta (the contract's
-  ``chamfer_m``, ``fscore``, ...), and again with the truth also culled to what the training cameras
-  see (:func:`~eval.geometry.visible_mask`; the ``*_visible`` fields).
+  test pose, PSNR / SSIM / LPIPS against the captured image (mean over views; LPIPS needs its
+  weights, :mod:`eval.lpips_weights`), and the error of the rendered depth (``depth / alpha``)
+  against the LiDAR depth over pixels with a return and ``alpha > 0.5`` (pooled over views).
+- **Geometry** (needs ground truth, :mod:`eval.ground_truth`: a virtual-rig ground-truth folder or a
+  mesh file in the scene's frame): the exported ``RUN_DIR/mesh.ply`` against the truth in the
+  scene frame, both culled to the training frusta (the contract's ``chamfer_m``, ``fscore``, ...),
+  and again with the truth also culled to what the training cameras see
+  (:func:`~eval.geometry.visible_mask`; the ``*_visible`` fields).
 - **Geometry against the test keyframes' LiDAR** (always; :mod:`eval.lidar_agreement`): the mesh's
   precision, recall and F-score at 20 cm against the held-out returns, the pseudo ground truth of a
   real recording (the ``lidar_*`` fields).
@@ -38,6 +39,8 @@ from scipy.spatial import cKDTree
 from eval.geometry import DEFAULT_SAMPLES
 from eval.leaned_views import hit_mask, leaned_poses
 from eval.lidar_agreement import lidar_agreement
+from eval.lpips_net import LpipsAlex
+from eval.lpips_weights import HOW_TO_GET, load_lpips
 from eval.photometric import lpips, psnr, ssim
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
@@ -185,10 +188,14 @@ def _render(model: TriangleModel, scene: Scene, T_world_cam: np.ndarray):
 
 
 def _photometric(
-    model: TriangleModel, scene: Scene, tests: list[Keyframe], metrics: dict, reasons: dict
+    model: TriangleModel,
+    scene: Scene,
+    tests: list[Keyframe],
+    lpips_network: LpipsAlex | None,
+    metrics: dict,
+    reasons: dict,
 ) -> list[ViewImages]:
     views, psnrs, ssims, lpips_values, depth_errors = [], [], [], [], []
-    lpips_reason = ""
     for keyframe in tests:
         out = _render(model, scene, keyframe.T_world_cam)
         render = _as_rgb(out.rgb)
@@ -201,12 +208,8 @@ def _photometric(
         )  # fmt: skip
         psnrs.append(views[-1].psnr)
         ssims.append(views[-1].ssim)
-        if not lpips_reason:
-            result = lpips(render, target)
-            if result.value is None:
-                lpips_reason = result.reason
-            else:
-                lpips_values.append(result.value)
+        if lpips_network is not None:
+            lpips_values.append(lpips(render, target, lpips_network).value)
         lidar = scene.depth(keyframe)
         alpha = out.alpha.detach().cpu().numpy()
         valid = (lidar > 0) & (alpha > ALPHA_SURFACE)
@@ -214,9 +217,9 @@ def _photometric(
         depth_errors.append(np.abs(depth - lidar[valid]))
     metrics["psnr"] = float(np.mean(psnrs))
     metrics["ssim"] = float(np.mean(ssims))
-    metrics["lpips"] = None if lpips_reason else float(np.mean(lpips_values))
-    if lpips_reason:
-        reasons["lpips"] = lpips_reason
+    metrics["lpips"] = float(np.mean(lpips_values)) if lpips_values else None
+    if lpips_network is None:
+        reasons["lpips"] = HOW_TO_GET
     errors = np.concatenate(depth_errors)
     metrics["depth_error_median_m"] = float(np.median(errors)) if errors.size else None
     metrics["depth_error_mean_m"] = float(np.mean(errors)) if errors.size else None
@@ -355,10 +358,13 @@ def evaluate_run(
     physics: bool = True,
     log: Callable[[str], None] = lambda _: None,
     scene: Scene | None = None,
+    lpips_weights: str | Path | None = None,
 ) -> RunEvaluation:
     """Evaluate a finished run (see the module docstring); ``gt`` is a virtual-rig ground-truth
-    folder, its parent or its ``mesh.ply`` (``None``: no geometric or physics metrics); ``scene``:
-    the run's scene when it is already loaded (its files are then not read again)."""
+    folder or its parent, or a mesh file in the scene's frame (``None``: no geometric or physics
+    metrics); ``scene``: the run's scene when it is already loaded (its files are then not read
+    again); ``lpips_weights``: the LPIPS weights file (``None``: where
+    :func:`~eval.lpips_weights.load_lpips` looks)."""
     run_dir = Path(run_dir)
     if threshold_m <= 0:
         raise InputError(f"threshold must be positive, got {threshold_m}", field="threshold")
@@ -371,18 +377,22 @@ def evaluate_run(
     metrics: dict = dict.fromkeys(CONTRACT_FIELDS)
     metrics["threshold_m"] = float(threshold_m)
     reasons: dict[str, str] = {}
-
-    log(f"rendering {len(tests)} test views")
-    views = _photometric(model, scene, tests, metrics, reasons)
-
+    # bad weights or ground truth fail here, before minutes of rendering
+    lpips_network = load_lpips(lpips_weights)
     truth = None
     if gt is not None:
         from eval.ground_truth import load_ground_truth
 
         truth = load_ground_truth(scene, gt)
+
+    log(f"rendering {len(tests)} test views")
+    views = _photometric(model, scene, tests, lpips_network, metrics, reasons)
+
     metrics.update(dict.fromkeys(GT_FIELDS))
     if truth is not None:
         metrics["gt_alignment_rmse_m"] = truth.pose_rmse_m
+        if truth.pose_rmse_m is None:
+            reasons["gt_alignment_rmse_m"] = "the ground truth is a mesh file, taken as in the scene's frame"
         reference, metrics["hole_reference"] = truth.mesh, "ground_truth"
     elif scene.mesh_path.is_file():
         reference, metrics["hole_reference"] = load_mesh(scene.mesh_path), "slam_mesh"
@@ -398,7 +408,9 @@ def evaluate_run(
     mesh_path = run_dir / MESH_FILE
     if truth is None:
         for name in GT_FIELDS:
-            reasons.setdefault(name, "needs --gt (a virtual-rig ground-truth folder)")
+            reasons.setdefault(
+                name, "needs --gt (a ground-truth mesh in the scene's frame or a virtual-rig folder)"
+            )
     elif not mesh_path.is_file():
         reasons["chamfer_m"] = f"the run has no exported mesh ({mesh_path})"
     else:

@@ -1,5 +1,6 @@
-"""``lts eval RUN_DIR [--gt GT_DIR]``: evaluate a training run, write ``eval.json`` and
-``report.html`` (mounted through :func:`eval.mesh_eval_cli.eval_command`)."""
+"""``lts eval RUN [--gt GT] [--lpips-weights PATH]``: evaluate a training run (``RUN`` and ``GT`` as
+:mod:`eval.run_inputs` resolves them), write ``eval.json`` and ``report.html`` in the run folder
+(mounted through :func:`eval.mesh_eval_cli.eval_command`)."""
 
 from __future__ import annotations
 
@@ -21,15 +22,21 @@ def evaluate_run_command(
     report: bool,
     physics: bool,
     device: str,
+    lpips_weights: Path | None,
     json_out: bool,
 ) -> None:
     from eval.run_eval import evaluate_run, write_eval_json
+    from eval.run_inputs import resolve_run_inputs
+
+    inputs = resolve_run_inputs(run_dir, gt)
 
     def log(message: str) -> None:
         console.print(f"[dim]{message}[/]", highlight=False)
 
     with native_output_to_stderr():
-        evaluation = evaluate_run(run_dir, gt, threshold, samples, device, physics, log)
+        evaluation = evaluate_run(
+            inputs.run_dir, inputs.gt, threshold, samples, device, physics, log, lpips_weights=lpips_weights
+        )
         eval_path = write_eval_json(evaluation)
         report_path = None
         if report:
