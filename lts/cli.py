@@ -7,7 +7,9 @@ from __future__ import annotations
 import typer
 
 from calib import cli as calib_cli
+from eval import weights_cli
 from eval.mesh_eval_cli import eval_command
+from eval.viewer_cli import view_command
 from lts import pipeline_cli
 from lts.bench.cli import bench_app
 from rig import trajectory_cli
@@ -34,6 +36,8 @@ app.add_typer(slam_cli.app, name="slam")
 app.command("prepare")(prepare_command)
 app.command("train")(train_command)
 app.command("eval")(eval_command)
+app.command("view")(view_command)
+app.add_typer(weights_cli.app, name="weights")
 app.command("reconstruct")(pipeline_cli.reconstruct_command)
 app.command("demo")(pipeline_cli.demo_command)
 app.add_typer(bench_app, name="bench")

@@ -40,6 +40,7 @@ def information_time(source: np.ndarray, points: np.ndarray, times: np.ndarray) 
         return float(np.mean(times[rows]))
     return float(np.average(times[rows], weights=weight))
 
+
 #: KISS-ICP threads: one, for the same poses bit for bit on every run (see SweepOdometry).
 ODOMETRY_THREADS = 1
 
