@@ -7,6 +7,7 @@ from pathlib import Path
 
 import typer
 
+from eval.cli_options import GT_HELP, THRESHOLD_OPTION
 from rig.cli_support import console, emit_json
 from rig.errors import InputError
 
@@ -24,11 +25,9 @@ def eval_command(
     gt: Path | None = typer.Option(
         None,
         "--gt",
-        help="With --mesh: the ground-truth mesh. With RUN: a mesh file (PLY/OBJ/GLB) already in the "
-        "scene's frame, or a virtual-rig ground-truth folder (lts sim OUT/ground_truth) or its parent OUT, "
-        "aligned by the keyframe poses.",
+        help=f"With --mesh: the ground-truth mesh. With RUN: {GT_HELP}.",
     ),
-    threshold: float = typer.Option(0.1, "--threshold", help="F-score distance threshold in metres."),
+    threshold: float = THRESHOLD_OPTION,
     samples: int = typer.Option(200_000, "--samples", help="Points sampled by area on each mesh."),
     seed: int = typer.Option(0, "--seed", help="Seed of the surface sampling (--mesh form)."),
     report: bool = typer.Option(

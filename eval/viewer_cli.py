@@ -7,6 +7,7 @@ from pathlib import Path
 
 import typer
 
+from eval.cli_options import GT_HELP, THRESHOLD_OPTION
 from rig.cli_support import console
 from rig.native_output import native_output_to_stderr
 
@@ -18,11 +19,9 @@ def view_command(
     gt: Path | None = typer.Option(
         None,
         "--gt",
-        help="Ground truth: a virtual-rig ground-truth folder (lts sim OUT/ground_truth), its parent "
-        "OUT or its mesh.ply (aligned through its trajectory), or any mesh file already in the "
-        "scene frame. Colours the mesh by its distance to it and shows the F-score.",
+        help=f"Ground truth: {GT_HELP}. Colours the mesh by its distance to it and shows the F-score.",
     ),
-    threshold: float = typer.Option(0.1, "--threshold", help="F-score distance threshold in metres."),
+    threshold: float = THRESHOLD_OPTION,
     host: str = typer.Option(
         "127.0.0.1", "--host", help="Address to listen on; 0.0.0.0 opens the viewer to the network."
     ),
