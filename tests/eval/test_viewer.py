@@ -12,12 +12,12 @@ import time
 import urllib.request
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from console_script import run_console_script
+from headless_browser import CHROMIUM, screenshot_when
 from test_run_eval import make_tiny_run
 
 from eval.run_inputs import resolve_run_dir
@@ -28,19 +28,6 @@ from slam_bridge.scene import load_scene
 from splat.run_dir import scene_of
 
 LTS = Path(sys.executable).parent / "lts"
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
-#: Headless Chromium has no GPU here: WebGL runs on SwiftShader, which newer Chromium only enables
-#: when asked (--enable-unsafe-swiftshader).
-CHROMIUM_FLAGS = (
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--use-angle=swiftshader",
-    "--enable-unsafe-swiftshader",
-    "--hide-scrollbars",
-    "--window-size=1280,800",
-    "--virtual-time-budget=15000",
-)
 
 
 @pytest.fixture(scope="module")
@@ -54,6 +41,18 @@ def reconstruct_dir(tmp_path_factory) -> tuple[Path, Path]:
     return out, gt_dir
 
 
+def _drawn_share(image: np.ndarray) -> float:
+    """The share of the 3D canvas (left of the control panel, below Chromium's software-WebGL
+    notice) that is not the empty canvas's white."""
+    canvas = image[200:, :900].reshape(-1, 3)
+    return float(np.any(canvas < 235, axis=1).mean())
+
+
+def _canvas_is_drawn(image: np.ndarray) -> bool:
+    canvas = image[200:, :900].reshape(-1, 3)
+    return _drawn_share(image) > 0.2 and len(np.unique(canvas, axis=0)) > 200
+
+
 def _free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
@@ -64,7 +63,7 @@ def _wait_for_port(port: int, server: subprocess.Popen, timeout_s: float = 120.0
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if server.poll() is not None:
-            pytest.fail(f"lts view exited with {server.returncode}: {server.stderr.read()}")
+            pytest.fail(f"lts view exited with {server.returncode}")
         try:  # an HTTP request: a bare connection would make the server log a failed handshake
             with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2.0):
                 return
@@ -107,26 +106,18 @@ def test_error_colours_span_the_scale_and_nearest_keyframe_faces_the_view() -> N
 def test_lts_view_serves_a_page_whose_3d_canvas_shows_the_run(reconstruct_dir, tmp_path) -> None:
     out, gt_dir = reconstruct_dir
     port = _free_port()
-    server = subprocess.Popen(
-        [LTS, "view", out, "--gt", gt_dir, "--port", str(port)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+    log = tmp_path / "view.log"  # a file, not a pipe nobody reads while the page loads
+    with log.open("w") as log_file:
+        command = [LTS, "view", out, "--gt", gt_dir, "--port", str(port)]
+        server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=log_file)
     try:
         _wait_for_port(port, server)
-        shot = tmp_path / "shot.png"
-        subprocess.run(
-            [CHROMIUM, *CHROMIUM_FLAGS, f"--screenshot={shot}", f"http://127.0.0.1:{port}"],
-            capture_output=True, timeout=180, check=True,
-        )  # fmt: skip
-        image = cv2.imread(str(shot))
-        assert image is not None and image.shape[:2] == (800, 1280)
-        # The 3D canvas left of the control panel, below Chromium's software-WebGL notice.
-        canvas = image[200:, :900].reshape(-1, 3)
-        drawn = np.any(canvas < 235, axis=1).mean()  # the empty canvas is white
-        assert drawn > 0.2, f"only {drawn:.1%} of the canvas is drawn on"
-        assert len(np.unique(canvas, axis=0)) > 200
+        image = screenshot_when(f"http://127.0.0.1:{port}", _canvas_is_drawn)
+        assert image.shape[:2] == (800, 1280)
+        assert _canvas_is_drawn(image), f"only {_drawn_share(image):.1%} of the canvas is drawn on"
         server.send_signal(signal.SIGINT)
-        _, stderr = server.communicate(timeout=30)
+        server.wait(timeout=30)
+        stderr = log.read_text()
         assert server.returncode == 0, stderr
         assert f"http://127.0.0.1:{port}" in stderr and str(out / "train") in stderr
         assert "Traceback" not in stderr
