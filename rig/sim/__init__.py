@@ -6,10 +6,11 @@ Public API (imported lazily, so that ``lts --help`` does not load open3d)::
     simulate(config, out_dir, progress=None) -> summary dict   session.mcap + ground_truth/
     prepare(config) -> SimRun     world, motion, rig and clocks, without writing anything
     record(run, out_dir, progress=None) -> summary dict        writes a prepared run
-    World, preset_world, mesh_world, PRESETS, get_preset
+    World, preset_world, mesh_world, PRESETS, get_preset   (presets: room ... street)
+    Mover, inside_movers          moving vehicles and their swept volumes
     Motion, path_motion           continuous-time camera motion
     CameraSimulator               ray-cast images and depth
-    LidarModel, simulate_scan     rosette / spinning LiDAR sweeps
+    LidarModel, simulate_scan     rosette / spinning / Velodyne-like LiDAR sweeps
     ImuModel, simulate_imu        gyro + accelerometer
     SensorClock                   device clocks (offset, drift) and host latency
     preview_image                 a frame with a LiDAR sweep drawn on it
@@ -30,6 +31,8 @@ _EXPORTS = {
     "mesh_world": "rig.sim.world",
     "PRESETS": "rig.sim.scenes",
     "get_preset": "rig.sim.scenes",
+    "Mover": "rig.sim.movers",
+    "inside_movers": "rig.sim.movers",
     "Motion": "rig.sim.motion",
     "path_motion": "rig.sim.trajectories",
     "CameraSimulator": "rig.sim.camera_sim",

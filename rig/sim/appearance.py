@@ -22,6 +22,8 @@ LIGHTS = (
 )
 LIGHT_WEIGHTS = np.array([0.6, 0.4])
 AMBIENT = 0.45
+#: About how many faces a ground-truth mesh is subdivided to at most (for its vertex colours).
+MAX_GROUND_TRUTH_FACES = 1_000_000
 
 
 def shade(normals: np.ndarray) -> np.ndarray:
@@ -82,15 +84,19 @@ class ProceduralAppearance:
         return self.bank.reflectivity[self.face_material[hits.face]]
 
     def coloured_mesh(self, mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+        # Large scenes (a street) are subdivided more coarsely, to about MAX_GROUND_TRUTH_FACES
+        # (edges end up between half and all of the spacing: 2-8 area / spacing² faces; the street
+        # gets about 2 M).
+        spacing = max(self.vertex_spacing_m, float(np.sqrt(5.0 * mesh.area / MAX_GROUND_TRUTH_FACES)))
         vertices, faces, parent = trimesh.remesh.subdivide_to_size(
-            mesh.vertices, mesh.faces, self.vertex_spacing_m, max_iter=20, return_index=True
+            mesh.vertices, mesh.faces, spacing, max_iter=20, return_index=True
         )
         fine = trimesh.Trimesh(vertices, faces, process=True)
         # Vertices are merged after subdivision: give each vertex the material of a face using it.
         material = np.empty(len(fine.vertices), dtype=np.int64)
         material[fine.faces.reshape(-1)] = np.repeat(self.face_material[parent], 3)
         normals = fine.vertex_normals
-        albedo = self.bank.sample(material, fine.vertices, normals, self.vertex_spacing_m)
+        albedo = self.bank.sample(material, fine.vertices, normals, spacing)
         rgb = np.clip(albedo * shade(normals)[:, None], 0.0, 1.0)
         fine.visual.vertex_colors = np.round(rgb * 255).astype(np.uint8)
         return fine

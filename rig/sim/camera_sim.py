@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from rig.camera import CameraModel
-from rig.sim.world import World
+from rig.sim.world import World, sky_colour
 
 #: Footprint stretch is capped at this grazing angle's cosine (limits blur at grazing incidence).
 MIN_COS_INCIDENCE = 0.25
@@ -34,24 +34,29 @@ class CameraSimulator:
         self.directions = rays[self.valid] / np.linalg.norm(rays[self.valid], axis=1, keepdims=True)
         self.pixel_angle = 1.0 / camera.fx
 
-    def render(self, world: World, T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Render the view from pose ``T_world_cam`` ``(4, 4)``.
+    def render(
+        self, world: World, T_world_cam: np.ndarray, t_s: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Render the view from pose ``T_world_cam`` ``(4, 4)`` at time ``t_s`` (s; where the
+        world's movers are).
 
         Returns:
-            ``(H, W, 3)`` float32 RGB in [0, 1] and ``(H, W)`` float64 depth (camera-frame z, m;
-            NaN where nothing was hit).
+            ``(H, W, 3)`` float32 RGB in [0, 1] (the sky, or black, where nothing was hit) and
+            ``(H, W)`` float64 depth (camera-frame z, m; NaN where nothing was hit).
         """
         R, t = T_world_cam[:3, :3], T_world_cam[:3, 3]
         directions = self.directions @ R.T
-        hits = world.raycaster.cast(t, directions)
+        hits = world.raycaster.cast(t, directions, t_s)
         index = np.flatnonzero(self.valid)
+        n_pix = self.camera.width * self.camera.height
+        rgb = np.zeros((n_pix, 3), dtype=np.float32)
         if not hits.hit.all():  # closed scenes hit everywhere; skip the copies then
             ok = hits.hit
+            if world.sky:
+                rgb[index[~ok]] = sky_colour(directions[~ok])
             hits, directions, index = hits.subset(ok), directions[ok], index[ok]
         cos = np.abs(np.einsum("ij,ij->i", hits.normal, directions))
         footprint = hits.distance * self.pixel_angle / np.maximum(cos, MIN_COS_INCIDENCE)
-        n_pix = self.camera.width * self.camera.height
-        rgb = np.zeros((n_pix, 3), dtype=np.float32)
         depth = np.full(n_pix, np.nan)
         rgb[index] = world.appearance.colour(hits, footprint)
         depth[index] = hits.distance * (directions @ R[:, 2])

@@ -14,7 +14,8 @@ def sim(
     preset: str = typer.Option(
         "room",
         "--preset",
-        help="Scene preset: room, corridor, stairs or boards (four chessboards, for calibration).",
+        help="Scene preset: room, corridor, stairs, boards (four chessboards, for calibration) or street "
+        "(a city street driven by a car: traffic, sky, a 64-beam LiDAR).",
     ),
     mesh: Path | None = typer.Option(
         None, "--mesh", help="User mesh (PLY/OBJ/GLB, vertex colours or texture)."
@@ -26,28 +27,42 @@ def sim(
     seed: int = typer.Option(0, "--seed", help="Seed: the same seed gives a bit-identical run."),
     duration: float = typer.Option(20.0, "--duration", help="Seconds of motion (presets)."),
     quick: bool = typer.Option(False, "--quick", help="Small run for tests: 3 s, 160x120."),
-    carrier: str = typer.Option("wheeled", "--carrier", help="wheeled (camera ~0.45 m high) or handheld."),
+    carrier: str | None = typer.Option(
+        None,
+        "--carrier",
+        help="wheeled (camera ~0.45 m high), handheld or car (~1.65 m). [default: the preset's; wheeled, "
+        "street: car]",
+        show_default=False,
+    ),
     fps: float = typer.Option(30.0, "--fps", help="Camera frame rate (Hz)."),
-    width: int = typer.Option(320, "--width", help="Image width (px)."),
-    height: int = typer.Option(240, "--height", help="Image height (px)."),
+    width: int | None = typer.Option(
+        None, "--width", help="Image width (px). [default: 320, street: 640]", show_default=False
+    ),
+    height: int | None = typer.Option(
+        None, "--height", help="Image height (px). [default: 240]", show_default=False
+    ),
     camera: str = typer.Option("pinhole", "--camera", help="Camera model: pinhole or fisheye."),
     image_format: str = typer.Option(
         "png", "--image-format", help="Frames in the session: png, jpeg or raw."
     ),
     image_noise: float = typer.Option(0.0, "--image-noise", help="Pixel noise std (grey levels)."),
     exposure_jitter: float = typer.Option(0.0, "--exposure-jitter", help="Per-frame gain std (relative)."),
-    lidar: str = typer.Option(
-        "mid360",
+    lidar: str | None = typer.Option(
+        None,
         "--lidar",
         help="LiDAR: mid360 (Livox Mid-360-like, 360° non-repetitive), rosette (Livox Avia-like, 70° field "
-        "of view) or spinning (Ouster-like, 32 beams).",
+        "of view), spinning (Ouster-like, 32 beams ±22.5°), velodyne64 (64 beams -24.8°..+2°, as KITTI's) "
+        "or velodyne32 (32 beams -30°..+10°). [default: mid360, street: velodyne64]",
+        show_default=False,
     ),
     lidar_points: int = typer.Option(
         20000, "--lidar-points", help="Points per sweep of the mid360/rosette patterns."
     ),
     range_noise: float = typer.Option(0.015, "--range-noise", help="LiDAR range noise std (m)."),
     dropout: float = typer.Option(0.02, "--dropout", help="Fraction of LiDAR returns lost."),
-    max_range: float = typer.Option(40.0, "--max-range", help="LiDAR maximum range (m)."),
+    max_range: float | None = typer.Option(
+        None, "--max-range", help="LiDAR maximum range (m). [default: 40, street: 80]", show_default=False
+    ),
     time_offset: float = typer.Option(
         0.015, "--time-offset", help="Camera-LiDAR time offset (s), see calib.yaml."
     ),

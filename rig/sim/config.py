@@ -11,7 +11,10 @@ import numpy as np
 from rig.camera import CameraModel
 from rig.data_file import load_data_file
 from rig.errors import InputError
+from rig.sim.scenes import PRESETS
 
+#: The rig of the indoor presets and user meshes; a preset may change these (``sensor_defaults``).
+SENSOR_DEFAULTS = {"carrier": "wheeled", "lidar": "mid360", "width": 320, "height": 240, "max_range_m": 40.0}
 #: What ``--quick`` changes: a short run at a small image size, for tests and smoke checks.
 QUICK = {"duration_s": 3.0, "width": 160, "height": 120, "lidar_points": 8000}
 
@@ -26,8 +29,11 @@ class SimConfig:
             instead of a preset; ``trajectory_rate_hz`` times trajectories without stamps.
         seed: seeds scene layout, textures, path wobble, clocks and every noise.
         duration_s: seconds of motion along a preset's path.
-        carrier: ``wheeled`` (camera 0.35–0.55 m high) or ``handheld`` (1.3–1.5 m).
+        carrier: ``wheeled`` (camera 0.35–0.55 m high), ``handheld`` (1.3–1.5 m) or ``car``
+            (1.6–1.7 m).
         fps, width, height, camera_model: the camera (``pinhole`` or ``fisheye``).
+        carrier, width, height, lidar and max_range_m left ``None`` take the preset's
+        ``sensor_defaults``, then :data:`SENSOR_DEFAULTS`.
         image_format: how frames are stored in the session (``png`` lossless, ``jpeg``, ``raw``).
         image_noise, exposure_jitter: pixel noise std (grey levels) and per-frame gain std.
         lidar, lidar_rate_hz, lidar_points, range_noise_m, dropout, max_range_m: the LiDAR.
@@ -41,24 +47,29 @@ class SimConfig:
     trajectory_rate_hz: float = 30.0
     seed: int = 0
     duration_s: float = 20.0
-    carrier: str = "wheeled"
+    carrier: str | None = None
     fps: float = 30.0
-    width: int = 320
-    height: int = 240
+    width: int | None = None
+    height: int | None = None
     camera_model: str = "pinhole"
     image_format: str = "png"
     image_noise: float = 0.0
     exposure_jitter: float = 0.0
-    lidar: str = "mid360"
+    lidar: str | None = None
     lidar_rate_hz: float = 10.0
     lidar_points: int = 20000
     range_noise_m: float = 0.015
     dropout: float = 0.02
-    max_range_m: float = 40.0
+    max_range_m: float | None = None
     imu_rate_hz: float = 200.0
     time_offset_s: float = 0.015
 
     def __post_init__(self) -> None:
+        preset = PRESETS.get(self.preset) if self.mesh is None else None
+        defaults = {**SENSOR_DEFAULTS, **(preset.sensor_defaults if preset else {})}
+        for name, value in defaults.items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, value)
         if (self.mesh is None) != (self.trajectory is None):
             raise InputError("--mesh and --trajectory go together", field="mesh/trajectory")
         for name in (
@@ -77,8 +88,8 @@ class SimConfig:
             raise InputError(
                 f"unknown {self.image_format!r}; expected png, jpeg or raw", field="image_format"
             )
-        if self.carrier not in ("wheeled", "handheld"):
-            raise InputError(f"unknown {self.carrier!r}; expected wheeled or handheld", field="carrier")
+        if self.carrier not in ("wheeled", "handheld", "car"):
+            raise InputError(f"unknown {self.carrier!r}; expected wheeled, handheld or car", field="carrier")
         if abs(self.time_offset_s) > 1.0:
             raise InputError(f"expected at most 1 s, got {self.time_offset_s}", field="time_offset_s")
 

@@ -18,6 +18,7 @@ import yaml
 from rig.calibration import Calibration, save_calibration
 from rig.sim.clocks import HOST_START_NS
 from rig.sim.imu_sim import ImuReadings
+from rig.trajectory import Trajectory
 from rig.trajectory_io import write_tum
 
 if TYPE_CHECKING:
@@ -25,8 +26,9 @@ if TYPE_CHECKING:
 
 
 def write_ground_truth(run: SimRun, gt_dir: Path, imu: ImuReadings) -> None:
-    """Write ``mesh.ply``, ``trajectory.tum``, ``trajectory_lidar.tum``, ``calib.yaml`` and
-    ``scene.yaml`` of ``run`` into ``gt_dir``."""
+    """Write ``mesh.ply`` (the static scene), ``trajectory.tum``, ``trajectory_lidar.tum``,
+    ``calib.yaml``, ``scene.yaml`` and, for a world with movers, ``movers/NAME.ply`` (each in its
+    own frame) and ``movers/NAME.tum`` (its poses at the camera frames) into ``gt_dir``."""
     gt_dir.mkdir(parents=True, exist_ok=True)
     run.world.appearance.coloured_mesh(run.world.mesh).export(gt_dir / "mesh.ply")
     frame_t, imu_t = run.frame_times, run.imu_times
@@ -35,6 +37,7 @@ def write_ground_truth(run: SimRun, gt_dir: Path, imu: ImuReadings) -> None:
         run.motion.trajectory(imu_t, run.lidar_clock.host_ns(imu_t), run.T_cam_lidar),
         gt_dir / "trajectory_lidar.tum",
     )
+    _write_movers(run, gt_dir / "movers")
     camera = run.config.camera()
     quality = {"source": "ground truth of a simulated run (lts sim)"}
     save_calibration(
@@ -61,6 +64,11 @@ def write_ground_truth(run: SimRun, gt_dir: Path, imu: ImuReadings) -> None:
             "imu_accel_bias": imu.accel_bias.tolist(),
         },
         "camera": camera.to_dict(),
+        "sky": run.world.sky,
+        "movers": [
+            {"name": m.name, "start_xy": list(m.start_xy), "velocity_xy": list(m.velocity_xy)}
+            for m in run.world.movers
+        ],
         "frames": {
             "world": "z up, metres",
             "camera": "OpenCV (x right, y down, z forward)",
@@ -69,6 +77,19 @@ def write_ground_truth(run: SimRun, gt_dir: Path, imu: ImuReadings) -> None:
     }
     text = yaml.safe_dump(_plain(scene), sort_keys=False, default_flow_style=None)
     (gt_dir / "scene.yaml").write_text(text)
+
+
+def _write_movers(run: SimRun, movers_dir: Path) -> None:
+    if not run.world.movers:
+        return
+    movers_dir.mkdir(exist_ok=True)
+    frame_t = run.frame_times
+    for mover in run.world.movers:
+        mover.mesh.export(movers_dir / f"{mover.name}.ply")
+        write_tum(
+            Trajectory.from_poses(run.camera_clock.host_ns(frame_t), mover.poses(frame_t)),
+            movers_dir / f"{mover.name}.tum",
+        )
 
 
 def _plain(value: object) -> object:

@@ -16,8 +16,14 @@ from rig.errors import InputError
 from rig.sim.motion import Motion
 from rig.sim.world import World
 
-LidarKind = Literal["mid360", "rosette", "spinning"]
-LIDAR_KINDS: tuple[str, ...] = ("mid360", "rosette", "spinning")
+LidarKind = Literal["mid360", "rosette", "spinning", "velodyne64", "velodyne32"]
+#: Spinning LiDARs: beams, lowest and highest beam elevation (degrees), columns per turn.
+SPINNING = {
+    "spinning": (32, -22.5, 22.5, 1024),  # Ouster OS1-32-like
+    "velodyne64": (64, -24.8, 2.0, 1024),  # HDL-64E's field (KITTI); half its columns at 10 Hz
+    "velodyne32": (32, -30.0, 10.0, 1024),  # HDL-32E-like
+}
+LIDAR_KINDS: tuple[str, ...] = ("mid360", "rosette", *SPINNING)
 # Mid-360-like vertical field of view (degrees).
 _MID360_ELEVATION_DEG = (-7.0, 52.0)
 #: Time step of the sensor poses a sweep's points are cast from (s).
@@ -33,8 +39,9 @@ class LidarModel:
     Attributes:
         kind: ``mid360`` (Livox Mid-360-like: non-repetitive, 360° around, -7° to 52° up; the
             default, as on most small robots), ``rosette`` (Livox Avia-like: two Risley prisms,
-            non-repetitive, 70° circular field of view) or ``spinning`` (Ouster OS1-32-like: 32
-            beams over ±22.5°, 1024 columns).
+            non-repetitive, 70° circular field of view) or a spinning one (:data:`SPINNING`):
+            ``spinning`` (Ouster OS1-32-like: 32 beams over ±22.5°), ``velodyne64`` (64 beams from
+            -24.8° to +2°, as on KITTI's car) or ``velodyne32`` (32 beams from -30° to +10°).
         rate_hz: sweeps per second.
         points_per_scan: rays per sweep of the rosette (the spinning pattern has beams × columns).
         range_noise_m: standard deviation of the Gaussian range noise.
@@ -97,8 +104,8 @@ class LidarModel:
                 [np.cos(polar), np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth)]
             )
             return dirs, t
-        beams, columns = 32, 1024
-        elevation = np.deg2rad(np.linspace(-22.5, 22.5, beams))
+        beams, low, high, columns = SPINNING[self.kind]
+        elevation = np.deg2rad(np.linspace(low, high, beams))
         column = np.repeat(np.arange(columns), beams)
         azimuth = -2 * np.pi * column / columns  # clockwise seen from above, as Ouster spins
         el = np.tile(elevation, columns)
@@ -139,7 +146,7 @@ def simulate_scan(
     )
     poses = motion.poses(grid, T_cam_lidar)[np.rint(t / POSE_STEP_S).astype(np.int64)]
     world_dirs = np.einsum("nij,nj->ni", poses[:, :3, :3], dirs)
-    hits = world.raycaster.cast(poses[:, :3, 3], world_dirs)
+    hits = world.raycaster.cast(poses[:, :3, 3], world_dirs, t_start_s + t)
     cos = np.abs(np.einsum("ij,ij->i", np.nan_to_num(hits.normal), world_dirs))
     keep = (
         hits.hit

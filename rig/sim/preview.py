@@ -20,7 +20,7 @@ def preview_image(run: SimRun, t_s: float | None = None) -> np.ndarray:
     t = run.motion.duration_s / 2 if t_s is None else t_s
     camera = run.config.camera()
     T_world_cam = run.motion.poses(np.array([t]))[0]
-    rgb, _ = CameraSimulator(camera).render(run.world, T_world_cam)
+    rgb, _ = CameraSimulator(camera).render(run.world, T_world_cam, t)
     image = cv2.resize(
         to_bgr8(rgb, np.random.default_rng(0)), None, fx=SCALE, fy=SCALE, interpolation=cv2.INTER_CUBIC
     )

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
@@ -16,33 +16,14 @@ from scipy.spatial.transform import Rotation
 
 from rig.errors import InputError
 from rig.sim.board import BoardSpec, board_mesh
+from rig.sim.movers import Mover
+from rig.sim.shapes import SceneMesh, box, join_parts
+from rig.sim.street import EGO_LANE_Y, EGO_SPEED_MPS, street, street_traffic
 from rig.sim.textures import MATERIAL_IDS
 from rig.transforms import make_transform
 
 #: Rotation from a LiDAR frame (x forward, y left, z up) to the OpenCV camera frame.
 R_CAM_LIDAR_NOMINAL = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-
-
-@dataclass
-class SceneMesh:
-    """A triangle mesh ``(V, 3)``/``(F, 3)`` and the material index of each face ``(F,)``."""
-
-    mesh: trimesh.Trimesh
-    face_material: np.ndarray
-
-
-def _join(parts: list[SceneMesh]) -> SceneMesh:
-    mesh = trimesh.util.concatenate([p.mesh for p in parts])
-    return SceneMesh(mesh, np.concatenate([p.face_material for p in parts]))
-
-
-def box(
-    size: tuple[float, float, float], centre: tuple[float, float, float], material: str, yaw: float = 0.0
-) -> SceneMesh:
-    """A closed box ``size`` (x, y, z) centred at ``centre``, turned by ``yaw`` about z."""
-    T = make_transform(Rotation.from_euler("z", yaw).as_matrix(), centre)
-    mesh = trimesh.creation.box(extents=size, transform=T)
-    return SceneMesh(mesh, np.full(len(mesh.faces), MATERIAL_IDS[material]))
 
 
 def shell(
@@ -95,7 +76,7 @@ def room(rng: np.random.Generator) -> SceneMesh:
         )
     parts += table((3.0, 4.4), rng)
     parts.append(box((1.8, 1.8, 0.15), (7.1, 5.1, 0.075), "concrete"))  # the step
-    return _join(parts)
+    return join_parts(parts)
 
 
 def _quads(quads: list[tuple[int, int, int, int]]) -> np.ndarray:
@@ -153,7 +134,7 @@ def corridor(rng: np.random.Generator) -> SceneMesh:
                 x, y = a + direction * (along + rng.uniform(-0.05, 0.05)) + side * s * (width / 2 - 0.1)
                 size = (0.3, 0.2) if direction[0] else (0.2, 0.3)
                 parts.append(box((*size, height), (x, y, height / 2), "bricks"))
-    return _join(parts)
+    return join_parts(parts)
 
 
 def stairs(rng: np.random.Generator) -> SceneMesh:
@@ -168,7 +149,7 @@ def stairs(rng: np.random.Generator) -> SceneMesh:
     )  # landing
     for size, centre in (((0.6, 0.6, 0.6), (0.6, 4.3)), ((0.5, 0.8, 0.4), (6.4, 0.6))):
         parts.append(box(size, (*centre, size[2] / 2), "cardboard", rng.uniform(-0.2, 0.2)))
-    return _join(parts)
+    return join_parts(parts)
 
 
 #: The chessboard of the ``boards`` preset: 7 × 5 inner corners, 10 cm squares, 5 cm margin.
@@ -191,7 +172,7 @@ def boards(rng: np.random.Generator) -> SceneMesh:
     parts += [SceneMesh(*board_mesh(CALIBRATION_BOARD, *pose)) for pose in BOARD_POSES]
     for size, centre in (((0.6, 0.6, 0.6), (6.2, 5.2)), ((0.5, 0.8, 0.5), (0.7, 0.8))):
         parts.append(box(size, (*centre, size[2] / 2), "cardboard", rng.uniform(-0.2, 0.2)))
-    return _join(parts)
+    return join_parts(parts)
 
 
 @dataclass(frozen=True)
@@ -203,6 +184,11 @@ class Preset:
         waypoints: ``(K, 2)`` x, y of the robot path (z up world).
         closed: the path is a loop (driven round as often as the duration needs).
         T_cam_lidar: ``(4, 4)`` LiDAR-to-camera transform of the rig in this preset.
+        speed_mps: the robot's cruising speed along the path.
+        movers: seeded generator of the objects that move during the run (none if ``None``).
+        sky: an open scene: rays that miss everything see the sky.
+        sensor_defaults: :class:`~rig.sim.config.SimConfig` values this preset's rig has unless
+            the user sets them (carrier, LiDAR, image size, range).
     """
 
     name: str
@@ -210,6 +196,10 @@ class Preset:
     waypoints: tuple[tuple[float, float], ...]
     closed: bool
     T_cam_lidar: np.ndarray
+    speed_mps: float = 0.45
+    movers: Callable[[np.random.Generator], list[Mover]] | None = None
+    sky: bool = False
+    sensor_defaults: dict[str, object] = field(default_factory=dict)
 
 
 def _extrinsic(rot_deg: tuple[float, float, float], t_cam: tuple[float, float, float]) -> np.ndarray:
@@ -246,6 +236,24 @@ PRESETS: dict[str, Preset] = {
         ((2.0, 2.0), (5.0, 2.0), (5.0, 4.0), (2.0, 4.0)),
         True,
         _extrinsic((0.8, -1.2, 0.6), (0.03, -0.08, -0.02)),
+    ),
+    "street": Preset(
+        "street",
+        street,
+        ((0.0, EGO_LANE_Y), (45.0, EGO_LANE_Y), (100.0, EGO_LANE_Y)),
+        False,
+        # KITTI's layout: the LiDAR 8 cm above and 27 cm behind the camera.
+        _extrinsic((0.4, -0.6, 0.3), (0.0, -0.08, -0.27)),
+        speed_mps=EGO_SPEED_MPS,
+        movers=street_traffic,
+        sky=True,
+        sensor_defaults={
+            "carrier": "car",
+            "lidar": "velodyne64",
+            "width": 640,
+            "height": 240,
+            "max_range_m": 80.0,
+        },
     ),
 }
 

@@ -80,6 +80,7 @@ def prepare(config: SimConfig) -> SimRun:
             config.duration_s,
             rng=rng_path,
             carrier=config.carrier,
+            speed_mps=preset.speed_mps,
             closed=preset.closed,
         )  # type: ignore[arg-type]
         T_cam_lidar = preset.T_cam_lidar
@@ -147,7 +148,7 @@ def record(
         for kind, i in zip(kinds[order], index[order], strict=True):
             t_host, t_dev = int(host[kind][i]), int(device[kind][i])
             if kind == 0:
-                rgb, _ = renderer.render(run.world, run.motion.poses(frame_t[i : i + 1])[0])
+                rgb, _ = renderer.render(run.world, run.motion.poses(frame_t[i : i + 1])[0], frame_t[i])
                 image = to_bgr8(rgb, rng_image, config.image_noise, config.exposure_jitter)
                 writer.write_camera_info(camera, t_host, t_dev)
                 writer.write_frame(Frame(image, t_host, t_dev, "camera"))

@@ -52,6 +52,14 @@ MATERIALS: tuple[Material, ...] = (
     # Matte print of a calibration board (appended: earlier materials keep their textures).
     Material("board_black", (0.06, 0.06, 0.06), "noise", 1.0, 0.0, 0.10),
     Material("board_white", (0.90, 0.90, 0.88), "noise", 1.0, 0.0, 0.85),
+    # The street (appended for the same reason). Vehicle paints are near uniform: textures are
+    # mapped in world coordinates, so a moving vehicle's would slide over it.
+    Material("asphalt", (0.30, 0.30, 0.32), "noise", 2.0, 0.40, 0.15),
+    Material("foliage", (0.24, 0.42, 0.16), "noise", 1.0, 0.65, 0.50),
+    Material("glass", (0.16, 0.19, 0.23), "noise", 2.0, 0.10, 0.08),
+    Material("paint_red", (0.70, 0.13, 0.10), "noise", 8.0, 0.04, 0.60),
+    Material("paint_white", (0.86, 0.86, 0.84), "noise", 8.0, 0.04, 0.80),
+    Material("paint_blue", (0.14, 0.24, 0.58), "noise", 8.0, 0.04, 0.50),
 )
 MATERIAL_IDS = {m.name: i for i, m in enumerate(MATERIALS)}
 

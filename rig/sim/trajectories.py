@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from rig.errors import InputError
 from rig.sim.motion import Motion
 
-Carrier = Literal["wheeled", "handheld"]
+Carrier = Literal["wheeled", "handheld", "car"]
 #: Rotation from the OpenCV camera frame to a body frame with x forward, y left, z up.
 R_BODY_CAM = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 #: Seconds to accelerate from rest to the nominal speed (and to brake at the end).
@@ -55,7 +55,8 @@ def path_motion(
 
     A closed path is driven round as often as ``duration_s`` needs; an open one must be long
     enough. The wheeled camera rides 0.35–0.55 m high, pitched a few degrees down with a slight
-    rocking; the hand-held one 1.3–1.5 m high with bob, sway and a slow look-around.
+    rocking; the hand-held one 1.3–1.5 m high with bob, sway and a slow look-around; the car's
+    1.6–1.7 m high on the roof, level, with a little body roll and pitch.
     """
     pts = np.asarray(waypoints, dtype=np.float64)
     if closed:
@@ -92,8 +93,14 @@ def path_motion(
         pitch = np.deg2rad(rng.uniform(10.0, 20.0)) + _wobble(rng, knots, np.deg2rad(3.0), (0.4, 0.9))
         roll = _wobble(rng, knots, np.deg2rad(2.5), (0.9, 0.35))
         yaw = yaw + _wobble(rng, knots, np.deg2rad(12.0), (0.12, 0.2))
+    elif carrier == "car":
+        height = rng.uniform(1.6, 1.7)
+        z = height + _wobble(rng, knots, 0.01, (1.3, 2.1))
+        pitch = np.deg2rad(rng.uniform(0.0, 1.0)) + _wobble(rng, knots, np.deg2rad(0.3), (0.8, 1.7))
+        roll = _wobble(rng, knots, np.deg2rad(0.3), (0.6, 1.4))
+        yaw = yaw + _wobble(rng, knots, np.deg2rad(0.5), (0.07, 0.13))
     else:
-        raise InputError(f"unknown carrier {carrier!r}; expected wheeled or handheld", field="carrier")
+        raise InputError(f"unknown carrier {carrier!r}; expected wheeled, handheld or car", field="carrier")
 
     R_world_body = Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll])).as_matrix()
     positions = np.column_stack([xy, z])

@@ -1,4 +1,4 @@
-"""The simulated world: a scene mesh, its appearance and a ray caster, from a preset or a file."""
+"""The simulated world: a scene mesh, its appearance, moving objects, sky and a ray caster."""
 
 from __future__ import annotations
 
@@ -10,34 +10,51 @@ import trimesh
 
 from rig.mesh_io import load_mesh
 from rig.sim.appearance import Appearance, MeshAppearance, ProceduralAppearance
-from rig.sim.raycast import Raycaster
+from rig.sim.movers import Mover, MovingRaycaster
 from rig.sim.scenes import Preset
+
+#: Sky colours (linear RGB in [0, 1]) at the horizon and the zenith; the sky blends between them.
+SKY_HORIZON = np.array([0.82, 0.86, 0.90])
+SKY_ZENITH = np.array([0.36, 0.54, 0.82])
 
 
 @dataclass
 class World:
-    """A static scene the virtual sensors observe.
+    """The scene the virtual sensors observe.
 
     Attributes:
         name: preset name or mesh file name.
-        mesh: the geometry (faces indexed by ray hits).
-        appearance: colours and reflectivity at hits.
-        raycaster: ray casting against ``mesh``.
+        mesh: the static geometry (faces indexed by ray hits; the ground truth).
+        appearance: colours and reflectivity at hits (static faces, then the movers' faces).
+        movers: objects that move during the run (not in ``mesh``).
+        sky: rays that miss everything see the sky (open scenes); otherwise black.
+        raycaster: ray casting against ``mesh`` and the movers at each ray's time.
     """
 
     name: str
     mesh: trimesh.Trimesh
     appearance: Appearance
-    raycaster: Raycaster = field(init=False)
+    movers: tuple[Mover, ...] = ()
+    sky: bool = False
+    raycaster: MovingRaycaster = field(init=False)
 
     def __post_init__(self) -> None:
-        self.raycaster = Raycaster(self.mesh)
+        self.raycaster = MovingRaycaster(self.mesh, self.movers)
+
+
+def sky_colour(directions: np.ndarray) -> np.ndarray:
+    """RGB ``(N, 3)`` of the sky seen along unit world ``directions`` ``(N, 3)`` (z up): a smooth
+    gradient from a pale horizon to a blue zenith (below the horizon, the horizon's colour)."""
+    up = np.clip(directions[:, 2], 0.0, 1.0)[:, None] ** 0.6
+    return (1.0 - up) * SKY_HORIZON + up * SKY_ZENITH
 
 
 def preset_world(preset: Preset, seed: int) -> World:
-    """The procedural scene of ``preset``, its layout and textures seeded by ``seed``."""
+    """The procedural scene of ``preset`` and its movers, layout and textures seeded by ``seed``."""
     scene = preset.build(np.random.default_rng([seed, 1]))
-    return World(preset.name, scene.mesh, ProceduralAppearance(scene.face_material, seed))
+    movers = tuple(preset.movers(np.random.default_rng([seed, 3]))) if preset.movers else ()
+    material = np.concatenate([scene.face_material, *(m.face_material for m in movers)])
+    return World(preset.name, scene.mesh, ProceduralAppearance(material, seed), movers, preset.sky)
 
 
 def mesh_world(path: str | Path) -> World:
