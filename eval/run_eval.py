@@ -47,6 +47,7 @@ from rig.mesh_io import load_mesh
 from rig.mesh_rays import mesh_raycaster
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
+from splat.background_mask import scored_background_mask
 from splat.model import TriangleModel, load_model
 
 #: The fields ``lts eval RUN_DIR --json`` promises (../shared/DESIGN.md), in this order.
@@ -181,10 +182,13 @@ def _as_rgb(image: torch.Tensor) -> np.ndarray:
     return image.detach().clamp(0, 1).cpu().numpy().astype(np.float32)
 
 
-def _render(model: TriangleModel, scene: Scene, T_world_cam: np.ndarray):
+def _render(model: TriangleModel, scene: Scene, T_world_cam: np.ndarray, depth: np.ndarray | None = None):
+    """The model's render at ``T_world_cam`` ``(4, 4)``; with the view's LiDAR ``depth`` ``(H, W)``,
+    the background only where the LiDAR did not reach (:mod:`splat.background_mask`)."""
     T_cam_world = torch.as_tensor(np.linalg.inv(T_world_cam), dtype=torch.float32, device=model.device)
+    mask = None if depth is None else scored_background_mask(torch.as_tensor(depth, device=model.device))
     with torch.no_grad():
-        return model.render(scene.camera, T_cam_world)
+        return model.render(scene.camera, T_cam_world, background_mask=mask)
 
 
 def _photometric(
@@ -197,7 +201,7 @@ def _photometric(
 ) -> list[ViewImages]:
     views, psnrs, ssims, lpips_values, depth_errors = [], [], [], [], []
     for keyframe in tests:
-        out = _render(model, scene, keyframe.T_world_cam)
+        out = _render(model, scene, keyframe.T_world_cam, scene.depth(keyframe))
         render = _as_rgb(out.rgb)
         target = scene.image(keyframe).astype(np.float32) / 255.0
         views.append(
@@ -313,9 +317,9 @@ def _physics(run_dir: Path, scene: Scene, truth, metrics: dict, reasons: dict) -
     up = _scene_up(truth)
     keyframes = sorted(scene.keyframes, key=lambda k: k.t_ns)
     starts = footprint_grid(np.stack([k.T_world_cam[:3, 3] for k in keyframes]), up)
-    rec = drop_probes(load_mesh(collision), starts, up)
-    gt = drop_probes(truth.mesh, starts, up)
     try:
+        rec = drop_probes(load_mesh(collision), starts, up)
+        gt = drop_probes(truth.mesh, starts, up)
         result = compare_drops(rec, gt)
     except InputError as exc:
         reasons["physics"] = str(exc)

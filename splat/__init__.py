@@ -26,6 +26,8 @@ _EXPORTS = {
     "TrainingDivergedError": "splat.trainer",
     "TrainingInterruptedError": "splat.trainer",
     "train": "splat.trainer",
+    "background_image": "splat.background",
+    "constant_background": "splat.background",
     "export_mesh": "splat.export",
     "decouple_and_scale": "splat.init_mesh",
     "ground_fill": "splat.init_mesh",

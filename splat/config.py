@@ -58,6 +58,7 @@ class TrainConfig(BaseModel):
     lr_vertices: float = Field(3e-4, ge=0)
     lr_colors: float = Field(0.02, ge=0)
     lr_opacity: float = Field(0.05, ge=0)
+    lr_background: float = Field(0.05, ge=0)
     vertex_lr_delay: float = Field(0.05, ge=0, le=1, description="vertex lr is 0 for this fraction")
     lr_final_factor: float = Field(0.1, gt=0, le=1)
 
@@ -67,6 +68,19 @@ class TrainConfig(BaseModel):
     sigma_anneal_end: float = Field(0.7, gt=0, le=1)
     floor_rise_start: float = Field(0.55, ge=0, le=1)
     floor_rise_end: float = Field(0.8, ge=0, le=1)
+
+    # Background: what the camera sees beyond the triangles (sky, structure above the LiDAR's field).
+    background: Literal["sh", "none"] = Field(
+        "sh",
+        description="sh: a trained colour per viewing direction (spherical harmonics, splat.background) "
+        "composited where the triangles' accumulated opacity is below 1, never exported; none: black",
+    )
+    background_sh_degree: int = Field(2, ge=0, le=3, description="degree of the background's harmonics")
+    background_where: Literal["above-lidar", "everywhere"] = Field(
+        "above-lidar",
+        description="where training composites it: above each image column's topmost LiDAR return "
+        "(elsewhere a gap between triangles stays black, so it is still filled), or everywhere",
+    )
 
     # Densification.
     densify: Literal["variance", "opacity", "none"] = Field(

@@ -20,7 +20,7 @@ def evaluate_views(model: TriangleModel, views: list[View], camera) -> dict[str,
     with alpha > 0.5."""
     psnrs, ssims, depth_errors = [], [], []
     for view in views:
-        out = model.render(camera, view.T_cam_world)
+        out = model.render(camera, view.T_cam_world, background_mask=view.background_mask)
         rgb = out.rgb.clamp(0, 1)
         mse = float(((rgb - view.image) ** 2).mean())
         psnrs.append(-10 * np.log10(max(mse, 1e-12)))
@@ -40,7 +40,8 @@ def write_renders(model: TriangleModel, views: list[View], camera, folder: Path)
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     for view in views:
-        rgb = model.render(camera, view.T_cam_world).rgb.clamp(0, 1).cpu().numpy()
+        out = model.render(camera, view.T_cam_world, background_mask=view.background_mask)
+        rgb = out.rgb.clamp(0, 1).cpu().numpy()
         path = folder / f"{view.name}.png"
         cv2.imwrite(str(path), cv2.cvtColor((rgb * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR))
         paths.append(path)

@@ -9,9 +9,11 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 import trimesh
+from torch import Tensor
 
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import Keyframe, Scene
+from splat.background import constant_background
 from splat.config import TrainConfig
 from splat.init_mesh import decouple_and_scale, ground_fill, simplify
 from splat.lidar_points import lidar_points
@@ -111,10 +113,18 @@ def project_colors(model: TriangleModel, views: list[View], camera, backend: str
     return int(seen.sum())
 
 
+def mean_image_color(views: list[View]) -> Tensor:
+    """``(3,)`` mean RGB over every pixel of ``views`` (mid grey without views)."""
+    if not views:
+        return torch.full((3,), GREY)
+    return torch.stack([view.image.mean(dim=(0, 1)) for view in views]).mean(dim=0).cpu()
+
+
 def build_model(
     init: Initialisation, config: TrainConfig, views: list[View], camera, log: Callable[[str], None]
 ) -> TriangleModel:
-    """The initial :class:`TriangleModel` on ``config.device`` (colours projected when asked)."""
+    """The initial :class:`TriangleModel` on ``config.device`` (colours projected when asked; with
+    ``background: sh``, a background of the views' mean colour)."""
     triangles = torch.as_tensor(init.triangles, dtype=torch.float32)
     colors = (
         torch.full_like(triangles, GREY)
@@ -127,4 +137,13 @@ def build_model(
     if init.colors is None and config.init_color == "project":
         coloured = project_colors(model, views, camera)
         log(f"colours of {coloured} of {model.n_triangles} triangles projected from {len(views)} views")
+    if config.background == "sh":
+        # The best constant before anything is known: pixels the triangles leave uncovered (or,
+        # while they are translucent, partly covered) then start near the images' average.
+        rgb = mean_image_color(views)
+        model.background = constant_background(
+            rgb, config.background_sh_degree, dtype=triangles.dtype, device=config.device
+        )
+        log(f"background: degree-{config.background_sh_degree} harmonics, starting at the training images' "
+            f"mean colour ({', '.join(f'{c:.2f}' for c in rgb.tolist())})")  # fmt: skip
     return model

@@ -10,12 +10,14 @@ be cloned, subdivided and pruned one by one. Parameters (all leaf tensors, rows 
   ``floor + (1 - floor) · sigmoid(logit)`` with the TS+ rising ``opacity_floor`` (1 → opaque).
 
 ``sigma`` (the window sharpness, annealed by the schedule) and ``opacity_floor`` are schedule
-state, not learnt.
+state, not learnt. The optional ``background`` ``(K, 3)`` (spherical-harmonic coefficients, see
+:mod:`splat.background`) is learnt too but is not per triangle, so it is kept out of ``params``
+(whose rows densification and pruning edit) and out of the exported meshes.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import torch
@@ -24,6 +26,7 @@ from torch import Tensor
 from rig.atomic_file import atomic_path
 from rig.camera import CameraModel
 from rig.errors import InputError
+from splat.background import MAX_DEGREE, background_image, n_coefficients
 from splat.raster import RenderOutput, render
 
 PARAM_NAMES = ("vertices", "colors", "opacity")
@@ -45,11 +48,13 @@ class TriangleModel:
         params: ``{"vertices": (F, 3, 3), "colors": (F, 3, 3), "opacity": (F,)}`` leaf tensors.
         sigma: window sharpness (> 0; smaller is sharper).
         opacity_floor: lower bound of the activated opacity in [0, 1].
+        background: ``(K, 3)`` leaf background coefficients, or None for a black background.
     """
 
     params: dict[str, Tensor]
     sigma: float = 1.0
     opacity_floor: float = 0.0
+    background: Tensor | None = None
 
     @classmethod
     def from_triangles(
@@ -80,6 +85,10 @@ class TriangleModel:
     def device(self) -> torch.device:
         return self.params["vertices"].device
 
+    def trainable(self) -> list[Tensor]:
+        """Every learnt tensor: the per-triangle ``params`` and the background, if any."""
+        return [*self.params.values(), *([] if self.background is None else [self.background])]
+
     def triangle_opacity(self) -> Tensor:
         """``(F,)`` activated opacity in ``[opacity_floor, 1]``."""
         return self.opacity_floor + (1.0 - self.opacity_floor) * torch.sigmoid(self.params["opacity"])
@@ -94,28 +103,44 @@ class TriangleModel:
         T_cam_world: Tensor,
         *,
         backend: str = "auto",
+        background_mask: Tensor | None = None,
     ) -> RenderOutput:
-        """Render the model from one camera (``T_cam_world`` ``(4, 4)``); see :func:`splat.render`."""
+        """Render the model from one camera (``T_cam_world`` ``(4, 4)``); see :func:`splat.render`.
+        With a background, ``rgb`` ``(H, W, 3)`` is composited over it (``+ bg · (1 - alpha)``) where
+        ``background_mask`` ``(H, W)`` bool is True (None: everywhere); the other images are the
+        triangles' alone."""
         n = self.n_triangles
         vertices = self.params["vertices"].reshape(3 * n, 3)
         faces = torch.arange(3 * n, device=self.device).view(n, 3)
         colors = self.triangle_colors().reshape(3 * n, 3)
         opacities = self.triangle_opacity().repeat_interleave(3)
-        return render(vertices, faces, colors, opacities, self.sigma, camera, T_cam_world, backend=backend)
+        out = render(vertices, faces, colors, opacities, self.sigma, camera, T_cam_world, backend=backend)
+        if self.background is None:
+            return out
+        shows = (1.0 - out.alpha).clamp(min=0.0)
+        if background_mask is not None:
+            shows = shows * background_mask
+        bg = background_image(self.background, camera, T_cam_world)
+        return replace(out, rgb=out.rgb + bg * shows[..., None])
 
     def to_state(self) -> dict:
-        """Plain tensors (detached, CPU) and schedule state, for ``torch.save``."""
-        return {
+        """Plain tensors (detached, CPU) and schedule state, for ``torch.save`` (``background`` only
+        when the model has one)."""
+        state = {
             **{name: p.detach().cpu().clone() for name, p in self.params.items()},
             "sigma": self.sigma,
             "opacity_floor": self.opacity_floor,
         }
+        if self.background is not None:
+            state["background"] = self.background.detach().cpu().clone()
+        return state
 
     @classmethod
     def from_state(
         cls, state: dict, device: torch.device | str = "cpu", path: Path | None = None
     ) -> TriangleModel:
-        """Inverse of :meth:`to_state`; errors name the file and the missing/malformed field."""
+        """Inverse of :meth:`to_state`; errors name the file and the missing/malformed field. A state
+        without ``background`` (written before backgrounds existed, or with none) loads without one."""
         params = {}
         for name in PARAM_NAMES:
             if name not in state or not isinstance(state[name], Tensor):
@@ -129,7 +154,24 @@ class TriangleModel:
                 raise InputError(f"expected shape {shape}, got {got}", path=path, field=name)
             if not bool(torch.isfinite(params[name]).all()):
                 raise InputError("holds NaN or Inf", path=path, field=name)
-        return cls(params, float(state.get("sigma", 1.0)), float(state.get("opacity_floor", 0.0)))
+        background = _background_from_state(state, device, path)
+        return cls(params, float(state.get("sigma", 1.0)), float(state.get("opacity_floor", 0.0)), background)
+
+
+def _background_from_state(state: dict, device: torch.device | str, path: Path | None) -> Tensor | None:
+    """The state's background coefficients ``(K, 3)`` as a leaf that requires grad, or None."""
+    background = state.get("background")
+    if background is None:
+        return None
+    if not isinstance(background, Tensor):
+        raise InputError("expected a tensor", path=path, field="background")
+    sizes = [n_coefficients(degree) for degree in range(MAX_DEGREE + 1)]
+    if background.dim() != 2 or background.shape[1] != 3 or len(background) not in sizes:
+        got = tuple(background.shape)
+        raise InputError(f"expected shape (K, 3) with K in {sizes}, got {got}", path=path, field="background")
+    if not bool(torch.isfinite(background).all()):
+        raise InputError("holds NaN or Inf", path=path, field="background")
+    return background.to(device).clone().requires_grad_(True)
 
 
 def save_model(model: TriangleModel, path: str | Path) -> None:

@@ -23,7 +23,9 @@ def replace_rows(
         raise ValueError(f"added rows must cover every parameter {names}, got {sorted(added)}")
     for group in optimizer.param_groups:
         old = group["params"][0]
-        name = next(n for n in names if model.params[n] is old)
+        name = next((n for n in names if model.params[n] is old), None)
+        if name is None:
+            continue  # not per triangle (the background): its rows and state stay as they are
         new = torch.cat([old.detach()[keep], added[name].to(old)]).requires_grad_(True)
         state = optimizer.state.pop(old, None)
         if state:
@@ -36,6 +38,9 @@ def replace_rows(
 
 
 def make_optimizer(model: TriangleModel, lrs: dict[str, float]) -> torch.optim.Adam:
-    """Adam with one parameter group per model parameter (named ``name``), learning rates ``lrs``."""
+    """Adam with one parameter group per model parameter (named ``name``), plus one named
+    ``background`` when the model has a background, learning rates ``lrs`` (name → lr)."""
     groups = [{"params": [model.params[name]], "lr": lrs[name], "name": name} for name in model.params]
+    if model.background is not None:
+        groups.append({"params": [model.background], "lr": lrs["background"], "name": "background"})
     return torch.optim.Adam(groups, eps=1e-15)

@@ -22,6 +22,7 @@ from rig.cli_support import console
 from rig.errors import InputError
 from slam_bridge.scene import Scene, load_scene
 from splat import run_dir as layout
+from splat.background_mask import scored_background_mask
 from splat.config import TrainConfig, load_config
 from splat.held_out_views import evaluate_views, write_renders
 from splat.initialise import build_model, initial_triangles
@@ -77,7 +78,12 @@ class _State:
 
 
 def _learning_rates(config: TrainConfig) -> dict[str, float]:
-    return {"vertices": config.lr_vertices, "colors": config.lr_colors, "opacity": config.lr_opacity}
+    return {
+        "vertices": config.lr_vertices,
+        "colors": config.lr_colors,
+        "opacity": config.lr_opacity,
+        "background": config.lr_background,
+    }
 
 
 def _apply_schedule(
@@ -100,7 +106,7 @@ def _view_order(seed: int, epoch: int, n: int) -> np.ndarray:
 def _finite_step(loss: torch.Tensor, model: TriangleModel) -> bool:
     if not bool(torch.isfinite(loss)):
         return False
-    return all(p.grad is None or bool(torch.isfinite(p.grad).all()) for p in model.params.values())
+    return all(p.grad is None or bool(torch.isfinite(p.grad).all()) for p in model.trainable())
 
 
 class Trainer:
@@ -147,6 +153,10 @@ class Trainer:
         device = self.config.device
         self.train_views: list[View] = load_views(self.scene, self.train_keyframes, device=device)
         self.test_views: list[View] = load_views(self.scene, self.test_keyframes, device=device)
+        if self.config.background != "none":
+            train_masked = self.config.background_where == "above-lidar"
+            for view in self.test_views + (self.train_views if train_masked else []):
+                view.background_mask = scored_background_mask(view.depth)
         if self.config.w_normal > 0 and all(v.normal is None for v in self.train_views):
             self.state.skips.append("no normal prior in any training view: normal loss skipped")
         if self.config.w_depth > 0 and all(v.depth is None for v in self.train_views):
@@ -218,6 +228,8 @@ class Trainer:
                 path=path,
             )
         self.model = TriangleModel.from_state(ckpt["model"], self.config.device, path)
+        if self.config.background != "none" and self.model.background is None:
+            self.log("the checkpoint predates trained backgrounds: the run continues without one")
         self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
         self.optimizer.load_state_dict(ckpt["optimizer"])
         self.strategy.load_state_dict(ckpt["strategy"])
@@ -235,7 +247,7 @@ class Trainer:
         self.strategy.before_step(self.model, self.optimizer, it)
         _apply_schedule(self.model, self.optimizer, self.config, it)
         view = self._training_view(it)
-        out = self.model.render(self.scene.camera, view.T_cam_world)
+        out = self.model.render(self.scene.camera, view.T_cam_world, background_mask=view.background_mask)
         opacity = self.model.triangle_opacity()
         terms = training_loss(out, view.image, view.depth, view.normal, opacity, self.config)
         terms.total.backward()

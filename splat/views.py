@@ -22,6 +22,8 @@ class View:
         image: ``(H, W, 3)`` RGB in [0, 1].
         depth: ``(H, W)`` LiDAR depth (0 = no return), or None when the keyframe has none.
         normal: ``(H, W, 3)`` normal prior (0 = none), or None when the keyframe has none.
+        background_mask: ``(H, W)`` bool, where training composites the background; None:
+            wherever the triangles leave alpha below one.
     """
 
     name: str
@@ -29,6 +31,7 @@ class View:
     image: Tensor
     depth: Tensor | None
     normal: Tensor | None
+    background_mask: Tensor | None = None
 
 
 def load_views(

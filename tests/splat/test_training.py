@@ -248,6 +248,7 @@ def test_resume_after_a_kill_reaches_identical_parameters(scene_dir, tmp_path, m
     a, b = load_model(tmp_path / "whole" / "model.pt"), load_model(tmp_path / "killed" / "model.pt")
     for name in a.params:
         assert torch.equal(a.params[name], b.params[name]), name
+    assert torch.equal(a.background, b.background)
     assert resumed.test == whole.test
     lines = (tmp_path / "killed" / "metrics.jsonl").read_text().splitlines()
     assert [json.loads(line)["iteration"] for line in lines] == [20, 40, 60]

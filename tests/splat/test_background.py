@@ -1,0 +1,209 @@
+"""The trained background: spherical harmonics, compositing, training, files, and the trainer."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from training_scene import write_training_scene
+
+from rig.camera import CameraModel
+from rig.errors import InputError
+from rig.transforms import make_transform
+from splat.background import background_image, background_rgb, camera_rays, constant_background, sh_basis
+from splat.background_mask import above_lidar
+from splat.config import make_config
+from splat.export import export_mesh
+from splat.model import TriangleModel, load_model, save_model
+from splat.param_rows import make_optimizer, replace_rows
+from splat.raster.scenes import pinhole
+from splat.trainer import Trainer
+
+CAMERA = pinhole(64, 48, fov_deg=80.0)
+# Looking along world +y from 1 m up (world z up): image rows above the centre see the sky.
+T_WORLD_CAM = make_transform(np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]), np.array([0.0, 0.0, 1.0]))
+T_CAM_WORLD = torch.as_tensor(np.linalg.inv(T_WORLD_CAM), dtype=torch.float32)
+TRIANGLE_RGB = (0.3, 0.6, 0.2)
+
+
+def lower_half_model() -> TriangleModel:
+    """Three stacked triangles of opacity 0.9 covering the image rows below the centre (alpha =
+    1 - 0.1³ there, 0 above), seen from ``T_WORLD_CAM``. (A pixel stops compositing before its
+    transmittance falls below 1e-4, so alpha never quite reaches 1.)"""
+    corners = torch.tensor([[-100.0, 0.0, 3.0], [100.0, 0.0, 3.0], [0.0, 100.0, 3.0]])
+    layers = torch.stack([corners + torch.tensor([0.0, 0.0, 0.5 * i]) for i in range(3)]).double()
+    world = layers @ torch.as_tensor(T_WORLD_CAM[:3, :3]).T + torch.as_tensor(T_WORLD_CAM[:3, 3])
+    colors = torch.tensor(TRIANGLE_RGB).expand(3, 3, 3)
+    return TriangleModel.from_triangles(world.float(), colors, 0.9, sigma=1e-3)
+
+
+def psnr(a: torch.Tensor, b: torch.Tensor) -> float:
+    return -10 * math.log10(float(((a - b) ** 2).mean()))
+
+
+def test_harmonics_match_their_closed_forms_and_are_differentiable():
+    # The closed forms (with the Condon-Shortley signs of the 3DGS basis) at a unit direction.
+    x, y, z = 0.6, 0.0, 0.8
+    c1, c2 = math.sqrt(3 / (4 * math.pi)), 0.5 * math.sqrt(15 / math.pi)
+    expected = [
+        0.5 / math.sqrt(math.pi), -c1 * y, c1 * z, -c1 * x,
+        c2 * x * y, -c2 * y * z, 0.25 * math.sqrt(5 / math.pi) * (3 * z * z - 1), -c2 * x * z,
+        0.5 * c2 * (x * x - y * y),
+    ]  # fmt: skip
+    direction = torch.tensor([[x, y, z]], dtype=torch.float64)
+    torch.testing.assert_close(sh_basis(direction, 2)[0], torch.tensor(expected, dtype=torch.float64))
+    assert sh_basis(direction, 0).shape == (1, 1) and sh_basis(direction, 3).shape == (1, 16)
+    coefficients = torch.linspace(-1, 1, 27, dtype=torch.float64).view(9, 3)
+    rgb = background_rgb(coefficients, direction)[0]
+    torch.testing.assert_close(rgb, torch.sigmoid(torch.tensor(expected, dtype=torch.float64) @ coefficients))
+
+    coefficients.requires_grad_(True)
+    directions = torch.nn.functional.normalize(torch.randn(5, 3, dtype=torch.float64), dim=1)
+    assert torch.autograd.gradcheck(background_rgb, (coefficients, directions.requires_grad_(True)))
+
+
+def test_a_constant_background_has_its_colour_everywhere_and_world_directions_follow_the_pose():
+    constant = constant_background([0.2, 0.5, 0.9], 2)
+    assert constant.shape == (9, 3) and constant.is_leaf and constant.requires_grad
+    image = background_image(constant, CAMERA, T_CAM_WORLD)
+    torch.testing.assert_close(image, torch.tensor([0.2, 0.5, 0.9]).expand(48, 64, 3))
+
+    coefficients = torch.randn(9, 3)
+    rays, valid = camera_rays(CAMERA, torch.device("cpu"), torch.float32)
+    assert bool(valid.all()) and torch.allclose(rays.norm(dim=1), torch.ones(len(rays)))
+    image = background_image(coefficients, CAMERA, T_CAM_WORLD)
+    # The optical axis (the pixel at (cx, cy) lies between four pixels: average their rays) sees +y.
+    centre = image[23:25, 31:33].reshape(4, 3)
+    axis = torch.nn.functional.normalize(rays.view(48, 64, 3)[23:25, 31:33].reshape(4, 3), dim=1)
+    world = axis @ T_CAM_WORLD[:3, :3]
+    torch.testing.assert_close(world.mean(0), torch.tensor([0.0, 1.0, 0.0]), atol=0.02, rtol=0)
+    torch.testing.assert_close(centre, background_rgb(coefficients, world))
+
+
+def test_pixels_the_camera_cannot_back_project_get_no_background():
+    fisheye = CameraModel("fisheye", 64, 48, np.array([[8.0, 0, 31.5], [0, 8, 23.5], [0, 0, 1]]), np.zeros(4))
+    _, valid = camera_rays(fisheye, torch.device("cpu"), torch.float32)
+    assert 0 < int(valid.sum()) < len(valid)  # the corners lie beyond 180°
+    image = background_image(constant_background([0.5, 0.5, 0.5], 2), fisheye, torch.eye(4))
+    assert not image.view(-1, 3)[~valid].any()
+    torch.testing.assert_close(image.view(-1, 3)[valid], torch.full((int(valid.sum()), 3), 0.5))
+
+
+def test_the_background_shows_where_no_triangle_is_and_not_where_they_are_opaque():
+    model = lower_half_model()
+    plain = model.render(CAMERA, T_CAM_WORLD)
+    model.background = constant_background([0.1, 0.2, 0.9], 2)
+    out = model.render(CAMERA, T_CAM_WORLD)
+    sky, ground = out.alpha == 0, out.alpha > 0.998
+    assert bool(sky[:23].all()) and bool(ground[25:].all())
+    torch.testing.assert_close(out.rgb[sky], torch.tensor([0.1, 0.2, 0.9]).expand(int(sky.sum()), 3))
+    torch.testing.assert_close(out.rgb[ground], torch.tensor(TRIANGLE_RGB).expand(int(ground.sum()), 3),
+                               atol=2e-3, rtol=0)  # fmt: skip
+    bg = background_image(model.background, CAMERA, T_CAM_WORLD)
+    torch.testing.assert_close(out.rgb, plain.rgb + bg * (1 - plain.alpha)[..., None])
+    for name in ("alpha", "accumulated_depth", "normal", "dominant", "max_weight"):
+        assert torch.equal(getattr(out, name), getattr(plain, name)), name
+    mask = torch.zeros(48, 64, dtype=torch.bool)
+    mask[:, :32] = True
+    masked = model.render(CAMERA, T_CAM_WORLD, background_mask=mask)
+    torch.testing.assert_close(masked.rgb[:, :32], out.rgb[:, :32])
+    torch.testing.assert_close(masked.rgb[:, 32:], plain.rgb[:, 32:])
+
+
+def test_training_shows_the_background_only_above_the_topmost_lidar_returns():
+    depth = torch.zeros(10, 40)
+    depth[6, :20] = 2.0  # a low wall on the left, a return in every other column
+    depth[3, 21::2] = 5.0  # a higher building on the right
+    above = above_lidar(depth)
+    assert bool(above[:6, :19].all()) and not above[6:, :19].any()  # gaps between returns bridged
+    assert bool(above[:3, 23:].all()) and not above[3:, 23:].any()
+    assert bool(above_lidar(torch.zeros(10, 40)).all())  # no return: all beyond the LiDAR
+
+
+def test_a_few_adam_steps_learn_a_sky_gradient():
+    model = lower_half_model()
+    rays, _ = camera_rays(CAMERA, torch.device("cpu"), torch.float32)
+    up = (rays @ T_CAM_WORLD[:3, :3])[:, 2].clamp(min=0).view(48, 64, 1)
+    horizon, zenith = torch.tensor([0.95, 0.95, 0.97]), torch.tensor([0.5, 0.7, 0.97])  # haze to blue
+    sky = horizon + (zenith - horizon) * (up / 0.5).clamp(max=1)
+    model.background = constant_background([0.5, 0.5, 0.5], 2)
+    with torch.no_grad():
+        out = model.render(CAMERA, T_CAM_WORLD)
+    target = torch.where(out.alpha[..., None] > 0.5, out.rgb, sky)
+    before = psnr(out.rgb[:24], target[:24])
+    optimizer = torch.optim.Adam([model.background], lr=make_config().lr_background, eps=1e-15)
+    for _ in range(60):
+        loss = (model.render(CAMERA, T_CAM_WORLD).rgb - target).abs().mean()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    with torch.no_grad():
+        after = psnr(model.render(CAMERA, T_CAM_WORLD).rgb[:24], target[:24])
+    assert before < 10 and after > 20, (before, after)
+
+
+def test_models_round_trip_with_and_without_a_background(tmp_path):
+    model = lower_half_model()
+    save_model(model, tmp_path / "plain.pt")
+    assert load_model(tmp_path / "plain.pt").background is None  # also what older files hold
+    model.background = constant_background([0.4, 0.5, 0.6], 3)
+    save_model(model, tmp_path / "sky.pt")
+    loaded = load_model(tmp_path / "sky.pt")
+    assert torch.equal(loaded.background, model.background.detach())
+    assert loaded.background.is_leaf and loaded.background.requires_grad
+    torch.testing.assert_close(loaded.render(CAMERA, T_CAM_WORLD).rgb, model.render(CAMERA, T_CAM_WORLD).rgb)
+
+    state = model.to_state()
+    for bad, message in ((torch.zeros(5, 3), "K in"), (torch.zeros(9), "K in"), ("sky", "tensor"),
+                         (torch.full((4, 3), math.nan), "NaN")):  # fmt: skip
+        with pytest.raises(InputError, match=message) as error:
+            TriangleModel.from_state({**state, "background": bad}, path=tmp_path / "m.pt")
+        assert error.value.field == "background"
+
+
+def test_row_surgery_leaves_the_background_and_its_adam_state_alone():
+    model = lower_half_model()
+    model.background = constant_background([0.5, 0.5, 0.5], 2)
+    optimizer = make_optimizer(model, {"vertices": 0.01, "colors": 0.01, "opacity": 0.01, "background": 0.01})
+    for p in model.trainable():
+        p.grad = torch.ones_like(p)
+    optimizer.step()
+    background, moment = model.background, optimizer.state[model.background]["exp_avg"].clone()
+    keep = torch.tensor([True, False, True])
+    replace_rows(model, optimizer, keep, {k: v[:0].detach() for k, v in model.params.items()})
+    assert model.n_triangles == 2 and model.background is background
+    assert torch.equal(optimizer.state[background]["exp_avg"], moment)
+    assert next(g for g in optimizer.param_groups if g["name"] == "background")["params"][0] is background
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory):
+    return write_training_scene(tmp_path_factory.mktemp("scene"))
+
+
+@pytest.mark.parametrize("background", ["sh", "none"])
+def test_training_with_and_without_a_background_exports_only_the_triangles(scene_dir, tmp_path, background):
+    config = make_config(
+        iterations=30, densify_every=10, densify_until=0.5, eval_every=10, checkpoint_every=10,
+        init_max_triangles=500, ground_fill=False, drop_redundant_keyframes=False, background=background,
+    )  # fmt: skip
+    trainer = Trainer(scene_dir, tmp_path / "run", config, log=lambda *_: None)
+    trainer.prepare(resume=False)
+    masks = [view.background_mask for view in trainer.train_views]
+    result = trainer.run(progress=False)
+    model = load_model(tmp_path / "run" / "model.pt")
+    if background == "sh":
+        assert model.background.shape == (9, 3) and bool(torch.isfinite(model.background).all())
+        # Beyond the corner's walls (the black top right of the views) is above every return.
+        assert all(0 < int(mask.sum()) < mask.numel() for mask in masks)
+    else:
+        assert model.background is None and masks == [None] * len(masks)
+    assert np.isfinite(result.test["test_psnr"])
+    mesh = trimesh.load(tmp_path / "run" / "mesh.ply", force="mesh", process=False)
+    assert len(mesh.faces) == model.n_triangles == result.n_triangles
+    model.background = None
+    export_mesh(model, tmp_path / "without")
+    assert (tmp_path / "without" / "mesh.ply").read_bytes() == (tmp_path / "run" / "mesh.ply").read_bytes()
