@@ -7,7 +7,9 @@ probe falls through; where its surface is off, probes rest at the wrong height.
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -18,6 +20,9 @@ PROBE_RADIUS_M = 0.04
 _SIM_HZ = 240
 _SETTLE_S = 1.5
 _MESH_GROUP, _PROBE_GROUP = 1, 2
+#: pybullet refuses meshes with more vertices than this when they are passed in memory
+#: (B3_MAX_NUM_VERTICES of its shared-memory command).
+_MAX_IN_MEMORY_VERTICES = 131_072
 
 
 @dataclass(frozen=True)
@@ -79,6 +84,28 @@ def footprint_grid(
     return grid.reshape(-1, 3)
 
 
+def _static_mesh_shape(pb, mesh: trimesh.Trimesh, client: int) -> int:
+    """A concave triangle-mesh collision shape of ``mesh``: passed in memory, or, beyond what
+    pybullet takes in memory (:data:`_MAX_IN_MEMORY_VERTICES`), through a temporary OBJ file."""
+    if len(mesh.vertices) <= _MAX_IN_MEMORY_VERTICES:
+        return pb.createCollisionShape(
+            pb.GEOM_MESH,
+            vertices=np.asarray(mesh.vertices, dtype=np.float64).tolist(),
+            indices=np.asarray(mesh.faces, dtype=np.int64).reshape(-1).tolist(),
+            flags=pb.GEOM_FORCE_CONCAVE_TRIMESH,
+            physicsClientId=client,
+        )
+    with tempfile.TemporaryDirectory(prefix="lts-physics-") as folder:
+        path = Path(folder) / "mesh.obj"
+        trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(path)
+        try:
+            return pb.createCollisionShape(
+                pb.GEOM_MESH, fileName=str(path), flags=pb.GEOM_FORCE_CONCAVE_TRIMESH, physicsClientId=client
+            )
+        except pb.error as exc:
+            raise InputError(f"pybullet cannot load a {len(mesh.faces)}-face mesh ({exc})") from None
+
+
 def drop_probes(
     mesh: trimesh.Trimesh,
     starts: np.ndarray,
@@ -97,13 +124,7 @@ def drop_probes(
     try:
         pb.setGravity(*(-9.81 * up), physicsClientId=client)
         pb.setTimeStep(1.0 / _SIM_HZ, physicsClientId=client)
-        shape = pb.createCollisionShape(
-            pb.GEOM_MESH,
-            vertices=np.asarray(mesh.vertices, dtype=np.float64).tolist(),
-            indices=np.asarray(mesh.faces, dtype=np.int64).reshape(-1).tolist(),
-            flags=pb.GEOM_FORCE_CONCAVE_TRIMESH,
-            physicsClientId=client,
-        )
+        shape = _static_mesh_shape(pb, mesh, client)
         ground = pb.createMultiBody(baseMass=0, baseCollisionShapeIndex=shape, physicsClientId=client)
         pb.setCollisionFilterGroupMask(ground, -1, _MESH_GROUP, _PROBE_GROUP, physicsClientId=client)
         sphere = pb.createCollisionShape(pb.GEOM_SPHERE, radius=radius_m, physicsClientId=client)
