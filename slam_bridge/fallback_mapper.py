@@ -9,8 +9,8 @@ are integrated.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
@@ -21,6 +21,7 @@ from rig.lidar_odometry import SweepOdometry
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, make_transform, transform_points
+from slam_bridge.dynamic_points import DynamicConfig, label_dynamic
 
 # Rotations R_face_sensor of the six cube-map cameras: rows are the camera's x (right), y (down) and
 # z (forward) axes in the sensor frame.
@@ -45,6 +46,7 @@ class MapperConfig:
         face_resolution_px: pixels across each 90° cube-map face (angular resolution of integration).
         min_range_m, max_range_m: points outside are ignored.
         min_weight: voxels observed fewer times are left out of the mesh (removes one-off noise).
+        dynamic: the see-through test that keeps moving objects out of the mesh (None: off).
     """
 
     voxel_size_m: float | None = None
@@ -53,13 +55,18 @@ class MapperConfig:
     min_range_m: float = 0.2
     max_range_m: float = 60.0
     min_weight: float = 3.0
+    dynamic: DynamicConfig | None = field(default_factory=DynamicConfig)
 
 
 @dataclass
 class MapperResult:
+    """The trajectory, the TSDF mesh, how many sweeps went in and the fraction of their points
+    judged dynamic (left out of the mesh)."""
+
     trajectory: Trajectory
     mesh: trimesh.Trimesh
     scans_used: int
+    dynamic_fraction: float = 0.0
 
 
 def _voxel_size(scan: Scan, config: MapperConfig) -> float:
@@ -129,9 +136,14 @@ class _TsdfIntegrator:
                 continue
             image = o3d.t.geometry.Image(o3c.Tensor(fill_small_holes(depth)))
             extrinsic = o3c.Tensor(invert(T_world_sensor @ T_sensor_face))
-            blocks = self.grid.compute_unique_block_coordinates(
-                image, self.K, extrinsic, 1.0, self.config.max_range_m, trunc_voxel_multiplier=3.0
-            )
+            try:
+                blocks = self.grid.compute_unique_block_coordinates(
+                    image, self.K, extrinsic, 1.0, self.config.max_range_m, trunc_voxel_multiplier=3.0
+                )
+            except RuntimeError as exc:  # Open3D aborts when a face's few returns touch no block
+                if "No block is touched" not in str(exc):
+                    raise
+                continue
             self.grid.integrate(
                 blocks,
                 image,
@@ -192,21 +204,50 @@ def run_mapper(
     """Odometry and a TSDF mesh from LiDAR scans (in time order).
 
     Poses are ``T_world_lidar`` with the world = the LiDAR frame of the first scan, stamped on the
-    scans' host clock at each sweep's :func:`~rig.lidar_odometry.information_time`. A scan is integrated
-    once the next one's pose is known, de-skewed with the poses before, at and after it.
+    scans' host clock at each sweep's :func:`~rig.lidar_odometry.information_time`. A scan is
+    de-skewed once the next one's pose is known (with the poses before, at and after it) and
+    integrated once the sweeps it is compared with for moving objects are in
+    (:func:`~slam_bridge.dynamic_points.label_dynamic`); their points are left out of the mesh.
     """
-    odometry: SweepOdometry | None = None
     tsdf = _TsdfIntegrator(config)
     t_ns: list[int] = []
     poses: list[np.ndarray] = []
+    counts = {"points": 0, "dynamic": 0}
+    for view, dynamic in label_dynamic(
+        _deskewed_sweeps(scans, config, t_ns, poses, progress), config.dynamic
+    ):
+        counts["points"] += len(dynamic)
+        counts["dynamic"] += int(dynamic.sum())
+        static = transform_points(invert(view.T_world_sensor), view.points_world[~dynamic])
+        tsdf.integrate(static, view.T_world_sensor)
+    if len(poses) < 2:
+        raise InputError(f"only {len(poses)} usable LiDAR scans; the mapper needs at least 2", field="scans")
+    trajectory = Trajectory.from_poses(np.array(t_ns, dtype=np.int64), np.stack(poses))
+    dynamic_fraction = counts["dynamic"] / max(counts["points"], 1)
+    return MapperResult(trajectory, tsdf.mesh(), len(poses), dynamic_fraction)
+
+
+def _deskewed_sweeps(
+    scans: Iterable[Scan],
+    config: MapperConfig,
+    t_ns: list[int],
+    poses: list[np.ndarray],
+    progress: Callable[[int], None] | None,
+) -> Iterator[tuple[float, np.ndarray, np.ndarray]]:
+    """Register each usable scan (appending its stamp and pose to ``t_ns`` and ``poses``) and
+    yield the one before it de-skewed: ``(t_s, points (N, 3) in the sensor frame, T_world_sensor)``."""
+    odometry: SweepOdometry | None = None
     pending: tuple[np.ndarray, np.ndarray] | None = None  # the last scan's points and their times (ns)
 
-    def integrate_pending(pose_index: int) -> None:
-        """Integrate the pending scan, whose pose is ``poses[pose_index]``."""
+    def deskew_pending(pose_index: int) -> tuple[float, np.ndarray, np.ndarray]:
         recent = Trajectory.from_poses(np.array(t_ns[-3:], dtype=np.int64), np.stack(poses[-3:]))
         points, point_t_ns = pending
         pose = poses[pose_index]
-        tsdf.integrate(transform_points(invert(pose), deskewed_points(points, point_t_ns, recent)), pose)
+        return (
+            t_ns[pose_index] * 1e-9,
+            transform_points(invert(pose), deskewed_points(points, point_t_ns, recent)),
+            pose,
+        )
 
     for index, scan in enumerate(scans):
         ranges = np.linalg.norm(scan.points, axis=1)
@@ -221,15 +262,12 @@ def run_mapper(
         t_ns.append(int(scan.t_host) + round(held_s * 1e9))
         poses.append(pose)
         if pending is not None:
-            integrate_pending(-2)
+            yield deskew_pending(-2)
         pending = (points, int(scan.t_host) + np.round(times * 1e9).astype(np.int64))
         if progress is not None:
             progress(index)
-    if len(poses) < 2:
-        raise InputError(f"only {len(poses)} usable LiDAR scans; the mapper needs at least 2", field="scans")
-    integrate_pending(-1)
-    trajectory = Trajectory.from_poses(np.array(t_ns, dtype=np.int64), np.stack(poses))
-    return MapperResult(trajectory, tsdf.mesh(), len(poses))
+    if len(poses) >= 2:
+        yield deskew_pending(-1)
 
 
 def world_points(scan_points: np.ndarray, pose: np.ndarray) -> np.ndarray:

@@ -26,12 +26,14 @@ class MapSummary:
     poses: int
     faces: int
     path_length_m: float
+    dynamic_fraction: float
 
     def describe(self) -> str:
         """One line for the user."""
         return (
             f"wrote {self.out}/mesh.ply ({self.faces} faces) and trajectory.tum ({self.poses} poses, "
-            f"{self.path_length_m:.2f} m)"
+            f"{self.path_length_m:.2f} m); {100 * self.dynamic_fraction:.1f} % of the LiDAR points were "
+            "on moving objects and left out of the mesh"
         )
 
 
@@ -59,5 +61,5 @@ def map_session(
     steps = np.diff(result.trajectory.translations, axis=0)
     return MapSummary(
         str(out), result.scans_used, len(result.trajectory), len(mesh.faces),
-        float(np.linalg.norm(steps, axis=1).sum()),
+        float(np.linalg.norm(steps, axis=1).sum()), result.dynamic_fraction,
     )  # fmt: skip

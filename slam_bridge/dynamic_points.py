@@ -1,0 +1,150 @@
+"""Points of moving objects in LiDAR sweeps: points that other sweeps see through.
+
+A static surface blocks every later and earlier ray towards it; where a vehicle stood, sweeps
+taken a moment before or after see past the spot to what is behind. So each sweep's points are
+compared with the range images of sweeps some fractions of a second to seconds away (at their
+own poses): a point is *seen through* by a sweep whose measured range in its direction — the
+smallest in a 3 × 3 neighbourhood of bins, so that edges and grazing ground do not count — is
+longer than the point's range by a margin. A point seen through often enough is dynamic.
+
+This is the visibility test of range-image map cleaning (Removert, Kim & Kim, IROS 2020) on
+neighbouring sweeps instead of a finished map; no maintained library does it on raw sweeps, so
+the few vectorised lines are here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import minimum_filter
+
+from rig.transforms import invert, transform_points
+
+
+@dataclass(frozen=True)
+class DynamicConfig:
+    """Settings of the see-through test.
+
+    Attributes:
+        offsets_s: how far before and after a sweep (s) the sweeps it is compared with lie.
+        azimuth_step_deg, elevation_step_deg: bin size of the range images; with the 3 × 3
+            minimum, elevation bins as wide as the beam spacing put a lower beam in every window,
+            so that ground seen at grazing angles is never "seen through".
+        margin_m, margin_relative: a point is seen through where the image's range exceeds its
+            own by ``max(margin_m, margin_relative * range)``.
+        min_votes: sweeps that must see through a point (fewer if fewer were compared).
+    """
+
+    offsets_s: tuple[float, ...] = (0.5, 1.0, 2.0)
+    azimuth_step_deg: float = 0.5
+    elevation_step_deg: float = 1.0
+    margin_m: float = 0.4
+    margin_relative: float = 0.04
+    min_votes: int = 2
+
+
+@dataclass
+class SweepView:
+    """One sweep as the see-through test needs it.
+
+    Attributes:
+        t_s: the sweep's time (s).
+        T_world_sensor: ``(4, 4)`` its pose.
+        points_world: ``(N, 3)`` its de-skewed points in the world frame.
+        ranges: ``(R, C)`` float32 conservative range image (neighbourhood minimum; inf where empty).
+    """
+
+    t_s: float
+    T_world_sensor: np.ndarray
+    points_world: np.ndarray
+    ranges: np.ndarray
+
+
+def _bins(directions: np.ndarray, config: DynamicConfig) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    """Row and column ``(N,)`` of unit sensor-frame ``directions`` ``(N, 3)``, and the image shape."""
+    shape = (int(np.ceil(180.0 / config.elevation_step_deg)), int(np.ceil(360.0 / config.azimuth_step_deg)))
+    elevation = np.degrees(np.arcsin(np.clip(directions[:, 2], -1.0, 1.0)))
+    azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0])) + 180.0
+    row = np.clip(((elevation + 90.0) / config.elevation_step_deg).astype(np.int64), 0, shape[0] - 1)
+    col = np.clip((azimuth / config.azimuth_step_deg).astype(np.int64), 0, shape[1] - 1)
+    return row, col, shape
+
+
+def sweep_view(
+    t_s: float, points_sensor: np.ndarray, T_world_sensor: np.ndarray, config: DynamicConfig
+) -> SweepView:
+    """A :class:`SweepView` of de-skewed sensor-frame points ``(N, 3)`` at pose ``(4, 4)``."""
+    ranges = np.linalg.norm(points_sensor, axis=1)
+    row, col, shape = _bins(points_sensor / np.maximum(ranges, 1e-9)[:, None], config)
+    image = np.full(shape, np.inf, dtype=np.float32)
+    np.minimum.at(image, (row, col), ranges.astype(np.float32))
+    # Neighbourhood minimum; azimuth wraps round, elevation does not (its edges stay empty).
+    image = minimum_filter(image, size=3, mode=("constant", "wrap"), cval=np.inf)
+    return SweepView(t_s, T_world_sensor, transform_points(T_world_sensor, points_sensor), image)
+
+
+def seen_through(points_world: np.ndarray, other: SweepView, config: DynamicConfig) -> np.ndarray:
+    """``(N,)`` bool: ``other`` sees past points ``(N, 3)`` (world) in their directions."""
+    local = transform_points(invert(other.T_world_sensor), points_world)
+    ranges = np.linalg.norm(local, axis=1)
+    row, col, _ = _bins(local / np.maximum(ranges, 1e-9)[:, None], config)
+    seen = other.ranges[row, col]
+    margin = np.maximum(config.margin_m, config.margin_relative * ranges)
+    return np.isfinite(seen) & (seen > ranges + margin)
+
+
+def comparison_sweeps(index: int, times_s: np.ndarray, config: DynamicConfig) -> list[int]:
+    """Indices of the sweeps (of times ``(S,)``) nearest ``offsets_s`` before and after sweep
+    ``index``; offsets beyond the ends of ``times_s`` are skipped."""
+    chosen = []
+    for offset in config.offsets_s:
+        for target in (times_s[index] - offset, times_s[index] + offset):
+            if times_s[0] - 0.05 <= target <= times_s[-1] + 0.05:
+                j = int(np.argmin(np.abs(times_s - target)))
+                if j != index and j not in chosen:
+                    chosen.append(j)
+    return chosen
+
+
+def dynamic_mask(sweep: SweepView, others: list[SweepView], config: DynamicConfig) -> np.ndarray:
+    """``(N,)`` bool: points of ``sweep`` that at least ``min_votes`` of ``others`` see through
+    (all of them when fewer were given)."""
+    if not others:
+        return np.zeros(len(sweep.points_world), dtype=bool)
+    votes = sum(seen_through(sweep.points_world, other, config).astype(np.int32) for other in others)
+    return votes >= min(config.min_votes, len(others))
+
+
+def label_dynamic(
+    sweeps: Iterable[tuple[float, np.ndarray, np.ndarray]], config: DynamicConfig | None
+) -> Iterator[tuple[SweepView, np.ndarray]]:
+    """Each sweep ``(t_s, points_sensor (N, 3) de-skewed, T_world_sensor (4, 4))``, in time order,
+    as a :class:`SweepView` with its ``(N,)`` dynamic mask (all False when ``config`` is None).
+
+    A sweep comes out once the sweeps ``max(offsets_s)`` after it are in (and at the end of the
+    input), and only the sweeps still needed for comparison are held, so memory stays bounded.
+    """
+    wait_s = max(config.offsets_s) if config else 0.0
+    views: list[SweepView] = []
+    emitted = 0  # views[:emitted] are out and kept only for comparison
+    iterator = iter(sweeps)
+    while True:
+        item = next(iterator, None)
+        if item is not None:
+            views.append(sweep_view(*item, config or DynamicConfig()))
+        times = np.array([v.t_s for v in views])
+        while emitted < len(views) and (item is None or times[emitted] + wait_s <= times[-1]):
+            view = views[emitted]
+            if config is None:
+                yield view, np.zeros(len(view.points_world), dtype=bool)
+            else:
+                others = [views[j] for j in comparison_sweeps(emitted, times, config)]
+                yield view, dynamic_mask(view, others, config)
+            emitted += 1
+        if item is None:
+            return
+        if emitted < len(views):
+            keep_from = int(np.searchsorted(times, times[emitted] - wait_s - 0.05))
+            views, emitted = views[keep_from:], emitted - keep_from

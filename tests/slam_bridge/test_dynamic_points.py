@@ -1,0 +1,64 @@
+"""The see-through test: points of a vehicle driving past a LiDAR are dynamic, the street's are not."""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from rig.sim.movers import Mover, MovingRaycaster, inside_movers
+from slam_bridge.dynamic_points import DynamicConfig, comparison_sweeps, dynamic_mask, sweep_view
+
+
+def _scene() -> tuple[trimesh.Trimesh, Mover]:
+    """A ground plane, a wall 12 m to the side and a 4 m car driving past at 3 m/s, 5 m away."""
+    ground = trimesh.creation.box(extents=(80.0, 40.0, 0.2))
+    ground.apply_translation((0.0, 0.0, -0.1))
+    wall = trimesh.creation.box(extents=(80.0, 0.5, 6.0))
+    wall.apply_translation((0.0, -12.0, 3.0))
+    car = trimesh.creation.box(extents=(4.0, 1.8, 1.4))
+    car.apply_translation((0.0, 0.0, 1.0))
+    mover = Mover("car", car, np.zeros(len(car.faces), dtype=np.int64), (-4.0, -5.0), (3.0, 0.0))
+    return trimesh.util.concatenate([ground, wall]), mover
+
+
+def _sweep(caster: MovingRaycaster, t: float, xy: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor-frame points ``(N, 3)`` of a 32-beam sweep from 1.7 m up, and their world points."""
+    elevation, azimuth = np.meshgrid(np.radians(np.linspace(-25, 5, 32)), np.radians(np.arange(0, 360, 0.4)))
+    d = np.column_stack(
+        [(np.cos(elevation) * np.cos(azimuth)).ravel(), (np.cos(elevation) * np.sin(azimuth)).ravel(),
+         np.sin(elevation).ravel()]
+    )  # fmt: skip
+    origin = np.array([*xy, 1.7])
+    hits = caster.cast(origin, d, t)
+    ok = hits.hit & (hits.distance < 60)
+    return d[ok] * hits.distance[ok, None], hits.points[ok]
+
+
+def test_a_passing_car_is_seen_through_and_the_street_is_not() -> None:
+    static, car = _scene()
+    caster = MovingRaycaster(static, (car,))
+    config = DynamicConfig()
+    times = np.arange(0.0, 4.01, 0.5)
+    views, world = [], []
+    for t in times:
+        xy = (1.0 * t, 0.0)  # the sensor drives at 1 m/s
+        sensor, points = _sweep(caster, t, xy)
+        T = np.eye(4)
+        T[:2, 3] = xy
+        views.append(sweep_view(float(t), sensor, T, config))
+        world.append(points)
+    index = 4  # t = 2 s: compared with 0, 1, 1.5, 2.5, 3 and 4 s
+    assert comparison_sweeps(index, times, config) == [3, 5, 2, 6, 0, 8]
+    others = [views[j] for j in comparison_sweeps(index, times, config)]
+    dynamic = dynamic_mask(views[index], others, config)
+    on_car = inside_movers(world[index], (car,), np.array([2.0]), 0.05)
+    assert on_car.sum() > 100
+    assert dynamic[on_car].mean() > 0.9
+    assert dynamic[~on_car].mean() < 0.005
+
+
+def test_without_comparison_sweeps_nothing_is_dynamic() -> None:
+    static, car = _scene()
+    sensor, _ = _sweep(MovingRaycaster(static, (car,)), 0.0, (0.0, 0.0))
+    view = sweep_view(0.0, sensor, np.eye(4), DynamicConfig())
+    assert not dynamic_mask(view, [], DynamicConfig()).any()
