@@ -66,6 +66,9 @@ def sim(
     time_offset: float = typer.Option(
         0.015, "--time-offset", help="Camera-LiDAR time offset (s), see calib.yaml."
     ),
+    traffic: bool = typer.Option(
+        True, "--traffic/--no-traffic", help="The vehicles drive (street); --no-traffic: a static scene."
+    ),
     config: Path | None = typer.Option(
         None, "--config", help="Regenerate a run from its ground_truth/scene.yaml (other options ignored)."
     ),
@@ -109,6 +112,7 @@ def sim(
             dropout=dropout,
             max_range_m=max_range,
             time_offset_s=time_offset,
+            traffic=traffic,
         )
         if quick:
             cfg = cfg.quick()

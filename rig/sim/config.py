@@ -39,6 +39,7 @@ class SimConfig:
         lidar, lidar_rate_hz, lidar_points, range_noise_m, dropout, max_range_m: the LiDAR.
         imu_rate_hz: IMU sample rate.
         time_offset_s: camera–LiDAR time offset written to calib.yaml (add to LiDAR times).
+        traffic: the preset's moving objects drive (``street``); False leaves the scene static.
     """
 
     preset: str = "room"
@@ -63,6 +64,7 @@ class SimConfig:
     max_range_m: float | None = None
     imu_rate_hz: float = 200.0
     time_offset_s: float = 0.015
+    traffic: bool = True
 
     def __post_init__(self) -> None:
         preset = PRESETS.get(self.preset) if self.mesh is None else None

@@ -74,7 +74,7 @@ def prepare(config: SimConfig) -> SimRun:
         T_cam_lidar = DEFAULT_T_CAM_LIDAR
     else:
         preset = get_preset(config.preset)
-        world = preset_world(preset, config.seed)
+        world = preset_world(preset, config.seed, config.traffic)
         motion = path_motion(
             np.array(preset.waypoints),
             config.duration_s,

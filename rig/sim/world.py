@@ -49,10 +49,11 @@ def sky_colour(directions: np.ndarray) -> np.ndarray:
     return (1.0 - up) * SKY_HORIZON + up * SKY_ZENITH
 
 
-def preset_world(preset: Preset, seed: int) -> World:
-    """The procedural scene of ``preset`` and its movers, layout and textures seeded by ``seed``."""
+def preset_world(preset: Preset, seed: int, traffic: bool = True) -> World:
+    """The procedural scene of ``preset`` and, with ``traffic``, its movers; layout and textures
+    seeded by ``seed``."""
     scene = preset.build(np.random.default_rng([seed, 1]))
-    movers = tuple(preset.movers(np.random.default_rng([seed, 3]))) if preset.movers else ()
+    movers = tuple(preset.movers(np.random.default_rng([seed, 3]))) if preset.movers and traffic else ()
     material = np.concatenate([scene.face_material, *(m.face_material for m in movers)])
     return World(preset.name, scene.mesh, ProceduralAppearance(material, seed), movers, preset.sky)
 

@@ -66,6 +66,7 @@ def test_street_defaults_are_a_car_with_a_kitti_like_lidar_and_a_wide_camera() -
     )  # fmt: skip
     assert SimConfig(preset="street", lidar="velodyne32", width=320).width == 320
     assert SimConfig(preset="room").lidar == "mid360"
+    assert prepare(SimConfig(preset="street", traffic=False).quick()).world.movers == ()
 
 
 def test_the_camera_sees_sky_and_what_is_above_the_lidar_field(street_run) -> None:
