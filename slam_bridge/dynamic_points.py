@@ -45,6 +45,10 @@ class DynamicConfig:
     min_votes: int = 2
 
 
+#: The settings the mapper and the scene builder use unless told otherwise.
+DEFAULT_DYNAMIC = DynamicConfig()
+
+
 @dataclass
 class SweepView:
     """One sweep as the see-through test needs it.
@@ -119,9 +123,10 @@ def dynamic_mask(sweep: SweepView, others: list[SweepView], config: DynamicConfi
 
 def label_dynamic(
     sweeps: Iterable[tuple[float, np.ndarray, np.ndarray]], config: DynamicConfig | None
-) -> Iterator[tuple[SweepView, np.ndarray]]:
+) -> Iterator[tuple[int, SweepView, np.ndarray]]:
     """Each sweep ``(t_s, points_sensor (N, 3) de-skewed, T_world_sensor (4, 4))``, in time order,
-    as a :class:`SweepView` with its ``(N,)`` dynamic mask (all False when ``config`` is None).
+    as its index in the input, a :class:`SweepView` and its ``(N,)`` dynamic mask (all False when
+    ``config`` is None).
 
     A sweep comes out once the sweeps ``max(offsets_s)`` after it are in (and at the end of the
     input), and only the sweeps still needed for comparison are held, so memory stays bounded.
@@ -129,6 +134,7 @@ def label_dynamic(
     wait_s = max(config.offsets_s) if config else 0.0
     views: list[SweepView] = []
     emitted = 0  # views[:emitted] are out and kept only for comparison
+    dropped = 0  # views dropped from the front of ``views`` so far
     iterator = iter(sweeps)
     while True:
         item = next(iterator, None)
@@ -138,13 +144,13 @@ def label_dynamic(
         while emitted < len(views) and (item is None or times[emitted] + wait_s <= times[-1]):
             view = views[emitted]
             if config is None:
-                yield view, np.zeros(len(view.points_world), dtype=bool)
+                yield dropped + emitted, view, np.zeros(len(view.points_world), dtype=bool)
             else:
                 others = [views[j] for j in comparison_sweeps(emitted, times, config)]
-                yield view, dynamic_mask(view, others, config)
+                yield dropped + emitted, view, dynamic_mask(view, others, config)
             emitted += 1
         if item is None:
             return
         if emitted < len(views):
             keep_from = int(np.searchsorted(times, times[emitted] - wait_s - 0.05))
-            views, emitted = views[keep_from:], emitted - keep_from
+            views, emitted, dropped = views[keep_from:], emitted - keep_from, dropped + keep_from

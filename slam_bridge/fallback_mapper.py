@@ -213,7 +213,7 @@ def run_mapper(
     t_ns: list[int] = []
     poses: list[np.ndarray] = []
     counts = {"points": 0, "dynamic": 0}
-    for view, dynamic in label_dynamic(
+    for _, view, dynamic in label_dynamic(
         _deskewed_sweeps(scans, config, t_ns, poses, progress), config.dynamic
     ):
         counts["points"] += len(dynamic)

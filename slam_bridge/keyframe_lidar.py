@@ -1,9 +1,10 @@
 """Each keyframe's LiDAR points: the scans between its neighbouring keyframes, deskewed by the
-trajectory and moved into its camera frame, kept where they project into the image."""
+trajectory, without the points of moving objects, moved into its camera frame and kept where they
+project into the image."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from rig.deskew import deskewed_points
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, transform_points
+from slam_bridge.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 from slam_bridge.keyframe_selection import lidar_clock
 from slam_bridge.scene import LIDAR_DIR, Keyframe
 
@@ -44,21 +46,34 @@ def keyframe_lidar(
     keyframes: list[Keyframe],
     camera: CameraModel,
     interval_s: float,
+    dynamic: DynamicConfig | None = DEFAULT_DYNAMIC,
 ) -> list[np.ndarray]:
     """Per keyframe (in time order), the points ``(N, 3)`` float32 in its camera frame of the scans
     stamped within its :func:`keyframe_windows` (on the camera clock), deskewed with the LiDAR
-    ``trajectory`` (host clock) and seen by ``camera``. Scans are streamed; each is deskewed once."""
+    ``trajectory`` (host clock) and seen by ``camera``, without the points of moving objects
+    (:func:`~slam_bridge.dynamic_points.label_dynamic` with ``dynamic``; None keeps them). Scans
+    are streamed; each is deskewed once."""
     lo, hi = keyframe_windows(np.array([k.t_ns for k in keyframes]), interval_s)
     lo, hi = lidar_clock(lo, calibration), lidar_clock(hi, calibration)
     T_cam_world = invert(np.stack([k.T_world_cam for k in keyframes]))
     chunks: list[list[np.ndarray]] = [[] for _ in keyframes]
-    for scan in scans:
-        first, stop = np.searchsorted(hi, scan.t_host), np.searchsorted(lo, scan.t_host, side="right")
-        if first >= stop:
-            continue
-        world = deskewed_points(scan.points, scan.point_times_ns(host=True), trajectory)
+    stamps: list[int] = []  # each sweep's host stamp, by index
+
+    def sweeps() -> Iterator[tuple[float, np.ndarray, np.ndarray]]:
+        for scan in scans:
+            wanted = np.searchsorted(hi, scan.t_host) < np.searchsorted(lo, scan.t_host, side="right")
+            if not wanted and dynamic is None:
+                continue  # no keyframe wants it, and no other sweep compares with it
+            world = deskewed_points(scan.points, scan.point_times_ns(host=True), trajectory)
+            T_world_sensor = trajectory.interpolate(np.array([scan.t_host]), clamp=True)[0]
+            stamps.append(int(scan.t_host))
+            yield scan.t_host * 1e-9, transform_points(invert(T_world_sensor), world), T_world_sensor
+
+    for index, view, moving in label_dynamic(sweeps(), dynamic):
+        t_host = stamps[index]
+        first, stop = np.searchsorted(hi, t_host), np.searchsorted(lo, t_host, side="right")
         for n in range(first, stop):
-            chunks[n].append(in_view(transform_points(T_cam_world[n], world), camera))
+            chunks[n].append(in_view(transform_points(T_cam_world[n], view.points_world[~moving]), camera))
     return [np.concatenate(c) if c else np.zeros((0, 3), np.float32) for c in chunks]
 
 
