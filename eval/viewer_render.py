@@ -18,6 +18,10 @@ from splat.model import TriangleModel
 Deliver = Callable[[np.ndarray], None]
 
 
+#: How long stopping waits for the render thread (s).
+STOP_WAIT_S = 2.0
+
+
 class ViewRenderer:
     """Renders ``model`` with ``scene``'s camera shrunk to at most ``max_width`` pixels wide.
 
@@ -60,10 +64,12 @@ class ViewRenderer:
             self._pending.pop(client_id, None)
 
     def stop(self) -> None:
-        """Stop the thread (waits for a render in progress)."""
+        """Stop the thread: wait up to :data:`STOP_WAIT_S` for a render or a delivery in progress
+        (a delivery to a browser that has gone can block; the thread is a daemon and ends with
+        the process)."""
         self._stopped.set()
         self._wake.set()
-        self._thread.join()
+        self._thread.join(timeout=STOP_WAIT_S)
 
     def _run(self) -> None:
         while not self._stopped.is_set():

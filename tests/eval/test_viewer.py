@@ -116,7 +116,7 @@ def test_lts_view_serves_a_page_whose_3d_canvas_shows_the_run(reconstruct_dir, t
         assert image.shape[:2] == (800, 1280)
         assert _canvas_is_drawn(image), f"only {_drawn_share(image):.1%} of the canvas is drawn on"
         server.send_signal(signal.SIGINT)
-        server.wait(timeout=30)
+        server.wait(timeout=60)
         stderr = log.read_text()
         assert server.returncode == 0, stderr
         assert f"http://127.0.0.1:{port}" in stderr and str(out / "train") in stderr
