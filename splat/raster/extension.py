@@ -7,6 +7,7 @@ import os
 import platform
 import shutil
 import sysconfig
+import time
 from functools import cache
 from pathlib import Path
 from types import ModuleType
@@ -63,6 +64,10 @@ def _missing_toolchain(cuda: bool) -> list[str]:
     return missing
 
 
+#: A build lock older than this (s) belongs to a compile that was killed (one takes about 30 s).
+STALE_LOCK_S = 600.0
+
+
 def _load(target: str, sources: list[Path], cuda: bool) -> ModuleType:
     import torch
     import torch.utils.cpp_extension as cpp
@@ -76,14 +81,19 @@ def _load(target: str, sources: list[Path], cuda: bool) -> ModuleType:
     digest.update(" ".join([*flags, torch.__version__, platform.python_version(), _cpu_model()]).encode())
     name = f"lts_raster_{target}_{digest.hexdigest()[:12]}"
     build_dir = cache_root() / name
-    if not (build_dir / f"{name}.so").exists():
-        missing = _missing_toolchain(cuda)
-        if missing:
-            raise BackendUnavailableError(
-                f"cannot build the {target.upper()} rasteriser: missing {'; '.join(missing)}. "
-                "Use backend='reference' for the (slow) pure-PyTorch rasteriser."
-            )
-        console.print(f"compiling the {target.upper()} rasteriser, once, ~30 s", highlight=False)
+    built = build_dir / f"{name}.so"
+    if built.exists():
+        # The name hashes the sources' contents: load the library as is. torch's loader would
+        # rebuild it for a checkout at another path (ninja tracks paths) and wait on its lock.
+        return _import_library(name, built)
+    _remove_stale_lock(build_dir / "lock")
+    missing = _missing_toolchain(cuda)
+    if missing:
+        raise BackendUnavailableError(
+            f"cannot build the {target.upper()} rasteriser: missing {'; '.join(missing)}. "
+            "Use backend='reference' for the (slow) pure-PyTorch rasteriser."
+        )
+    console.print(f"compiling the {target.upper()} rasteriser, once, ~30 s", highlight=False)
     build_dir.mkdir(parents=True, exist_ok=True)
     try:
         return cpp.load(
@@ -100,6 +110,27 @@ def _load(target: str, sources: list[Path], cuda: bool) -> ModuleType:
         raise BackendUnavailableError(
             f"building the {target.upper()} rasteriser in {build_dir} failed: {exc}"
         ) from exc
+
+
+def _import_library(name: str, path: Path) -> ModuleType:
+    """The compiled extension module ``name`` at ``path`` (torch must be imported first)."""
+    import importlib.util
+
+    import torch  # noqa: F401  (the library links against torch's)
+
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise BackendUnavailableError(f"cannot load the rasteriser library {path}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _remove_stale_lock(lock: Path) -> None:
+    """Remove a build lock left by a compile that was killed (older than :data:`STALE_LOCK_S`):
+    torch would otherwise wait on it forever."""
+    if lock.exists() and time.time() - lock.stat().st_mtime > STALE_LOCK_S:
+        lock.unlink(missing_ok=True)
 
 
 @cache
