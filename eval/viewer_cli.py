@@ -1,7 +1,9 @@
-"""``lts view RUN_DIR [--gt GT]``: serve the interactive viewer (:mod:`eval.viewer`) until Ctrl-C."""
+"""``lts view RUN_DIR [--gt GT]``: serve the interactive viewer (:mod:`eval.viewer`) until Ctrl-C
+(or SIGTERM)."""
 
 from __future__ import annotations
 
+import signal
 import time
 from pathlib import Path
 
@@ -38,7 +40,7 @@ def view_command(
     keyframe cameras with their images, the trajectory, a keyframe's LiDAR points, and the model's
     render of the current viewpoint beside the nearest captured image.
 
-    Prints the URL and serves until Ctrl-C. On a robot or server, forward the port over SSH and
+    Prints the URL and serves until Ctrl-C (or SIGTERM). On a robot or server, forward the port over SSH and
     open the URL on your machine: ssh -L 8080:localhost:8080 robot
     """
     if not threshold > 0:
@@ -51,6 +53,7 @@ def view_command(
     def log(message: str) -> None:
         console.print(f"[dim]{message}[/]", highlight=False)
 
+    _stop_on_signals()
     with native_output_to_stderr():
         data = load_viewer_data(run_dir, gt, device, threshold, log=log)
         viewer = Viewer(data, host, port, render_width)
@@ -70,3 +73,15 @@ def view_command(
             console.print("lts view: stopped", highlight=False)
         finally:
             viewer.stop()
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def _stop_on_signals() -> None:
+    """Ctrl-C and SIGTERM both stop the server cleanly, also where SIGINT arrives ignored (a
+    background job of a non-interactive shell inherits that, and Python then never raises
+    KeyboardInterrupt)."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _interrupt)

@@ -115,7 +115,7 @@ def test_lts_view_serves_a_page_whose_3d_canvas_shows_the_run(reconstruct_dir, t
         image = screenshot_when(f"http://127.0.0.1:{port}", _canvas_is_drawn)
         assert image.shape[:2] == (800, 1280)
         assert _canvas_is_drawn(image), f"only {_drawn_share(image):.1%} of the canvas is drawn on"
-        server.send_signal(signal.SIGINT)
+        server.send_signal(signal.SIGTERM)  # as Ctrl-C; SIGINT is ignored where pytest runs in the background
         server.wait(timeout=60)
         stderr = log.read_text()
         assert server.returncode == 0, stderr
