@@ -32,8 +32,8 @@ class MapSummary:
         """One line for the user."""
         return (
             f"wrote {self.out}/mesh.ply ({self.faces} faces) and trajectory.tum ({self.poses} poses, "
-            f"{self.path_length_m:.2f} m); {100 * self.dynamic_fraction:.1f} % of the LiDAR points were "
-            "on moving objects and left out of the mesh"
+            f"{self.path_length_m:.2f} m); {100 * self.dynamic_fraction:.1f} % of the LiDAR points, judged "
+            "moving (other sweeps see through them), were left out of the mesh"
         )
 
 
