@@ -14,7 +14,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from rig.camera import CameraModel
-from rig.mesh_rays import cast_camera_rays, mesh_raycaster
+from rig.mesh_rays import cast_camera_rays, mesh_raycaster, pixel_rays
 from rig.transforms import make_transform
 
 
@@ -30,10 +30,7 @@ def leaned_poses(poses_world_cam: np.ndarray, yaw_deg: float = 10.0, shift_m: fl
 def hit_mask(scene, camera: CameraModel, T_world_cam: np.ndarray, max_range_m: float = 20.0) -> np.ndarray:
     """``(H, W)`` bool: which pixels of a camera at ``T_world_cam`` see a surface of ``scene`` (a
     :func:`rig.mesh_rays.mesh_raycaster`) within ``max_range_m`` along the ray."""
-    u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
-    rays = camera.unproject(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
-    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-    t_hit = cast_camera_rays(scene, T_world_cam, rays)["t_hit"]
+    t_hit = cast_camera_rays(scene, T_world_cam, pixel_rays(camera))["t_hit"]
     return (t_hit <= max_range_m).reshape(camera.height, camera.width)
 
 

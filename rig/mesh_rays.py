@@ -1,12 +1,15 @@
-"""Rays cast at a triangle mesh (open3d ``RaycastingScene``): one way to build the scene, and
-camera rays cast from a pose. open3d is imported on first use."""
+"""Rays cast at a triangle mesh (open3d ``RaycastingScene``): one way to build the scene, a
+camera's pixel rays, and camera rays cast from a pose. open3d is imported on first use."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import trimesh
+
+if TYPE_CHECKING:
+    from rig.camera import CameraModel
 
 
 def mesh_raycaster(mesh: trimesh.Trimesh) -> Any:
@@ -19,6 +22,14 @@ def mesh_raycaster(mesh: trimesh.Trimesh) -> Any:
         o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
     )
     return raycaster
+
+
+def pixel_rays(camera: CameraModel) -> np.ndarray:
+    """Unit camera-frame rays ``(H * W, 3)`` through every pixel centre, row by row (NaN where the
+    camera model cannot back-project the pixel)."""
+    u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
+    rays = camera.unproject(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
+    return rays / np.linalg.norm(rays, axis=1, keepdims=True)
 
 
 def cast_camera_rays(raycaster: Any, T_world_cam: np.ndarray, rays_cam: np.ndarray) -> dict[str, np.ndarray]:

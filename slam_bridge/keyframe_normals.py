@@ -11,15 +11,8 @@ import numpy as np
 
 from rig.camera import CameraModel
 from rig.errors import InputError
-from rig.mesh_rays import cast_camera_rays
+from rig.mesh_rays import cast_camera_rays, pixel_rays
 from slam_bridge.scene import Keyframe
-
-
-def pixel_rays(camera: CameraModel) -> np.ndarray:
-    """Unit camera-frame rays ``(H * W, 3)`` through every pixel centre, row by row."""
-    u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
-    rays = camera.unproject(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
-    return rays / np.linalg.norm(rays, axis=1, keepdims=True)
 
 
 def normal_prior(

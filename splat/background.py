@@ -15,6 +15,7 @@ import torch
 from torch import Tensor
 
 from rig.camera import CameraModel
+from rig.mesh_rays import pixel_rays
 
 MAX_DEGREE = 3
 _C0 = 0.28209479177387814
@@ -94,12 +95,9 @@ def camera_rays(camera: CameraModel, device: torch.device, dtype: torch.dtype) -
     cannot back-project the pixel) and where they exist ``(H·W,)`` bool. Cached per camera."""
     key = (camera.model, camera.size, camera.K.tobytes(), camera.dist.tobytes(), torch.device(device), dtype)
     if key not in _rays:
-        width, height = camera.size
-        v, u = np.mgrid[0:height, 0:width]
-        rays = camera.unproject(np.column_stack([u.ravel(), v.ravel()]).astype(np.float64))
+        rays = pixel_rays(camera)
         valid = np.isfinite(rays).all(axis=1)
         rays = np.where(valid[:, None], rays, 0.0)
-        rays /= np.maximum(np.linalg.norm(rays, axis=1, keepdims=True), 1e-12)
         if len(_rays) >= _RAYS_KEPT:
             _rays.pop(next(iter(_rays)))
         _rays[key] = (
