@@ -57,7 +57,8 @@ class SweepView:
         t_s: the sweep's time (s).
         T_world_sensor: ``(4, 4)`` its pose.
         points_world: ``(N, 3)`` its de-skewed points in the world frame.
-        ranges: ``(R, C)`` float32 conservative range image (neighbourhood minimum; inf where empty).
+        ranges: ``(R, C)`` float32 conservative range image (neighbourhood minimum; inf where empty;
+            empty when no test runs).
     """
 
     t_s: float
@@ -131,7 +132,12 @@ def label_dynamic(
     A sweep comes out once the sweeps ``max(offsets_s)`` after it are in (and at the end of the
     input), and only the sweeps still needed for comparison are held, so memory stays bounded.
     """
-    wait_s = max(config.offsets_s) if config else 0.0
+    if config is None:  # no range images, no waiting
+        for index, (t_s, points, T_world_sensor) in enumerate(sweeps):
+            view = SweepView(t_s, T_world_sensor, transform_points(T_world_sensor, points), np.empty((0, 0)))
+            yield index, view, np.zeros(len(points), dtype=bool)
+        return
+    wait_s = max(config.offsets_s)
     views: list[SweepView] = []
     emitted = 0  # views[:emitted] are out and kept only for comparison
     dropped = 0  # views dropped from the front of ``views`` so far
@@ -139,15 +145,12 @@ def label_dynamic(
     while True:
         item = next(iterator, None)
         if item is not None:
-            views.append(sweep_view(*item, config or DynamicConfig()))
+            views.append(sweep_view(*item, config))
         times = np.array([v.t_s for v in views])
         while emitted < len(views) and (item is None or times[emitted] + wait_s <= times[-1]):
             view = views[emitted]
-            if config is None:
-                yield dropped + emitted, view, np.zeros(len(view.points_world), dtype=bool)
-            else:
-                others = [views[j] for j in comparison_sweeps(emitted, times, config)]
-                yield dropped + emitted, view, dynamic_mask(view, others, config)
+            others = [views[j] for j in comparison_sweeps(emitted, times, config)]
+            yield dropped + emitted, view, dynamic_mask(view, others, config)
             emitted += 1
         if item is None:
             return

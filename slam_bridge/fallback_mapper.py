@@ -10,7 +10,7 @@ are integrated.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
@@ -21,7 +21,7 @@ from rig.lidar_odometry import SweepOdometry
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, make_transform, transform_points
-from slam_bridge.dynamic_points import DynamicConfig, label_dynamic
+from slam_bridge.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 
 # Rotations R_face_sensor of the six cube-map cameras: rows are the camera's x (right), y (down) and
 # z (forward) axes in the sensor frame.
@@ -55,7 +55,7 @@ class MapperConfig:
     min_range_m: float = 0.2
     max_range_m: float = 60.0
     min_weight: float = 3.0
-    dynamic: DynamicConfig | None = field(default_factory=DynamicConfig)
+    dynamic: DynamicConfig | None = DEFAULT_DYNAMIC
 
 
 @dataclass

@@ -68,7 +68,7 @@ class MovingRaycaster:
     def __init__(self, static: trimesh.Trimesh, movers: tuple[Mover, ...]) -> None:
         self.static = Raycaster(static)
         self.movers = movers
-        self.offsets = mover_face_offsets(len(static.faces), movers)
+        self.n_static_faces = len(static.faces)
 
     def cast(self, origins: np.ndarray, directions: np.ndarray, t_s: np.ndarray | float = 0.0) -> Hits:
         """Cast rays ``(N, 3)`` from ``origins`` ``(N, 3)`` or ``(3,)`` at times ``t_s`` (scalar
@@ -88,7 +88,7 @@ class MovingRaycaster:
             if nearer.any():
                 r = rows[nearer]
                 hits.distance[r] = moving.distance[nearer]
-                hits.face[r] = moving.face[nearer] + self.offsets[0]
+                hits.face[r] = moving.face[nearer] + self.n_static_faces
                 hits.bary[r] = moving.bary[nearer]
                 hits.normal[r] = moving.normal[nearer]
                 hits.points[r] = moving.points[nearer]
