@@ -201,7 +201,8 @@ def _photometric(
 ) -> list[ViewImages]:
     views, psnrs, ssims, lpips_values, depth_errors = [], [], [], [], []
     for keyframe in tests:
-        out = _render(model, scene, keyframe.T_world_cam, scene.depth(keyframe))
+        lidar = scene.depth(keyframe)
+        out = _render(model, scene, keyframe.T_world_cam, lidar)
         render = _as_rgb(out.rgb)
         target = scene.image(keyframe).astype(np.float32) / 255.0
         views.append(
@@ -214,7 +215,6 @@ def _photometric(
         ssims.append(views[-1].ssim)
         if lpips_network is not None:
             lpips_values.append(lpips(render, target, lpips_network).value)
-        lidar = scene.depth(keyframe)
         alpha = out.alpha.detach().cpu().numpy()
         valid = (lidar > 0) & (alpha > ALPHA_SURFACE)
         depth = out.expected_depth().detach().cpu().numpy()[valid]

@@ -122,7 +122,10 @@ def _import_library(name: str, path: Path) -> ModuleType:
     if spec is None or spec.loader is None:
         raise BackendUnavailableError(f"cannot load the rasteriser library {path}")
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    try:
+        spec.loader.exec_module(module)
+    except (ImportError, OSError) as exc:  # e.g. a library cut short by a killed build
+        raise BackendUnavailableError(f"cannot load the rasteriser library {path}: {exc}") from exc
     return module
 
 
