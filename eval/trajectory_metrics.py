@@ -95,3 +95,41 @@ def absolute_trajectory_error(
     return AbsoluteTrajectoryError(
         float(np.sqrt(np.mean(errors**2))), float(errors.mean()), float(errors.max()), int(covered.sum()), T
     )
+
+
+@dataclass(frozen=True)
+class RelativePoseError:
+    """Error of the motion between poses ``delta`` apart (evo's RPE, both parts), after no
+    alignment: translation (m) and rotation (deg) RMSE and maximum over the pairs."""
+
+    translation_rmse_m: float
+    translation_max_m: float
+    rotation_rmse_deg: float
+    rotation_max_deg: float
+    pairs: int
+    delta: int
+
+
+def relative_pose_error(estimate: Trajectory, reference: Trajectory, delta: int = 1) -> RelativePoseError:
+    """RPE of ``estimate`` against ``reference`` (interpolated at the estimate's stamps it covers)
+    over pose pairs ``delta`` apart: the error ``(Q_i⁻¹ Q_j)⁻¹ (P_i⁻¹ P_j)`` of each relative motion."""
+    if delta < 1:
+        raise InputError(f"must be at least 1, got {delta}", field="delta")
+    covered = reference.covers(estimate.t_ns)
+    if covered.sum() <= delta:
+        raise InputError(
+            f"the reference covers {int(covered.sum())} of the estimate's stamps; need more than {delta}",
+            field="t",
+        )
+    est = estimate.poses[covered]
+    ref = reference.interpolate(estimate.t_ns[covered])
+    est_motion = np.linalg.inv(est[:-delta]) @ est[delta:]
+    ref_motion = np.linalg.inv(ref[:-delta]) @ ref[delta:]
+    error = np.linalg.inv(ref_motion) @ est_motion
+    translation = np.linalg.norm(error[:, :3, 3], axis=1)
+    cos_angle = np.clip((np.trace(error[:, :3, :3], axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    rotation = np.degrees(np.arccos(cos_angle))
+    return RelativePoseError(
+        float(np.sqrt(np.mean(translation**2))), float(translation.max()),
+        float(np.sqrt(np.mean(rotation**2))), float(rotation.max()), len(error), delta,
+    )  # fmt: skip

@@ -9,6 +9,7 @@ import typer
 from calib import cli as calib_cli
 from eval import weights_cli
 from eval.mesh_eval_cli import eval_command
+from eval.trajectory_compare_cli import compare_command
 from eval.viewer_cli import view_command
 from lts import pipeline_cli
 from lts.bench.cli import bench_app
@@ -29,6 +30,7 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+trajectory_cli.app.command("compare")(compare_command)
 app.add_typer(trajectory_cli.app, name="trajectory")
 app.command("sim")(sim_cli.sim)
 app.add_typer(calib_cli.app, name="calibrate")
