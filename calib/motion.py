@@ -103,10 +103,10 @@ def lidar_poses(scans: Sequence[Scan], backward: bool = False) -> tuple[np.ndarr
         scan = used[k]
         stride = max(1, len(scan) // ODOMETRY_POINTS)
         points = np.asarray(scan.points[::stride], dtype=np.float64)
-        held_s, poses[k] = odometry.register(
+        poses[k], information = odometry.register(
             points, np.asarray(scan.point_time_s, dtype=np.float64)[::stride]
         )
-        times[k] = scan.t_host * 1e-9 + held_s
+        times[k] = scan.t_host * 1e-9 + information.held_s
     return times, poses
 
 

@@ -1,11 +1,12 @@
-"""When the ICP pose of a sweep that was not de-skewed holds (rig.lidar_odometry.information_time)."""
+"""When the ICP pose of a sweep that was not de-skewed holds, and how well it is constrained
+(rig.lidar_odometry.sweep_information)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from rig.lidar_odometry import SweepOdometry, information_time
+from rig.lidar_odometry import SweepOdometry, sweep_information
 
 
 def _room_sweep(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -30,22 +31,31 @@ def test_weights_points_by_rotational_information() -> None:
     weight = np.sum(np.cross(source, normals[::3]) ** 2, axis=1)
     expected = np.average(times[::3], weights=weight)
     # (Within 1 ms: the estimated normals are off at the room's corners.)
-    assert information_time(source, points, times) == pytest.approx(expected, abs=1e-3)
+    assert sweep_information(source, points, times).held_s == pytest.approx(expected, abs=1e-3)
     # Not the plain mean: the far wall (y = -2, three quarters into the turn) weighs more.
     assert expected - times[::3].mean() > 5e-3
 
 
 def test_one_instant_sweep() -> None:
     points, _, _ = _room_sweep(np.random.default_rng(1))
-    assert information_time(points[::5], points, np.full(len(points), 0.03)) == pytest.approx(0.03)
+    assert sweep_information(points[::5], points, np.full(len(points), 0.03)).held_s == pytest.approx(0.03)
 
 
 def test_sweep_odometry_follows_a_moving_lidar() -> None:
     """Two sweeps of the room, the second from 5 cm further along x: the second pose moved by that."""
     points, times, _ = _room_sweep(np.random.default_rng(2))
     odometry = SweepOdometry(voxel_size=0.1, max_range=20.0)
-    held_s, first = odometry.register(points, times)
+    first, information = odometry.register(points, times)
     np.testing.assert_allclose(first, np.eye(4), atol=1e-9)
-    assert 0.0 < held_s < 0.1
-    _, second = odometry.register(points - [0.05, 0.0, 0.0], times)
+    assert 0.0 < information.held_s < 0.1
+    second, _ = odometry.register(points - [0.05, 0.0, 0.0], times)
     np.testing.assert_allclose(second[:3, 3], [0.05, 0.0, 0.0], atol=5e-3)
+
+
+def test_walls_without_floor_leave_vertical_translation_unconstrained() -> None:
+    """The four walls pin x and y down; nothing faces up or down, so z is the weak direction."""
+    points, times, _ = _room_sweep(np.random.default_rng(3))
+    information = sweep_information(points[::3], points, times)
+    assert information.translation_information.sum() == pytest.approx(1.0)
+    assert information.translation_information[0] < 0.01 < 0.2 < information.translation_information[1]
+    assert abs(information.weakest_direction[2]) > 0.99
