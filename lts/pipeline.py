@@ -211,8 +211,8 @@ def map_session(session: Recording, out: Path, log: Callable[[str], None]) -> No
     """The slam stage without a mapper's output: the fallback mapper on the recording's sweeps."""
     from slam_bridge.map_session import map_session as run_fallback_mapper
 
-    summary = run_fallback_mapper(session, out)
-    log(f"  {summary.describe()}")
+    for line in run_fallback_mapper(session, out).describe():
+        log(f"  {line}")
 
 
 def prepare_config(o: ReconstructOptions) -> PrepareConfig:

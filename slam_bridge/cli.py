@@ -117,4 +117,5 @@ def run_command(
     if json_out:
         emit_json(asdict(summary))
         return
-    console.print(summary.describe())
+    for line in summary.describe():
+        console.print(line)

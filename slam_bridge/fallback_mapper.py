@@ -10,18 +10,19 @@ are integrated.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import trimesh
 
 from rig.deskew import deskewed_points
 from rig.errors import InputError
-from rig.lidar_odometry import SweepOdometry
+from rig.lidar_odometry import ODOMETRY_POINTS_PER_VOXEL, SweepOdometry
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, make_transform, transform_points
 from slam_bridge.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
+from slam_bridge.mapping_quality import MappingQuality, judge_mapping
 
 # Rotations R_face_sensor of the six cube-map cameras: rows are the camera's x (right), y (down) and
 # z (forward) axes in the sensor frame.
@@ -35,13 +36,19 @@ _CUBE_FACES = [
 ]
 
 
+#: The odometry voxel as a fraction of the 95th-percentile range of the first sweep. The time of
+#: registration falls steeply with the voxel (it sets how many points are matched) and so does the
+#: accuracy beyond a scene-dependent size. On the virtual rig (200 sweeps, ATE after alignment;
+#: see docs/slam.md): room ... .
+VOXEL_PER_RANGE = 1 / 60
+
+
 @dataclass(frozen=True)
 class MapperConfig:
     """Settings of the fallback mapper.
 
     Attributes:
-        voxel_size_m: KISS-ICP voxel size; None picks 1/30 of the median point range, at least 0.1 m
-            (smaller voxels cost much more time for no accuracy gain indoors).
+        voxel_size_m: KISS-ICP voxel size; None picks it from the ranges (:func:`odometry_voxel`).
         tsdf_voxel_m: TSDF voxel size (the mesh resolution).
         face_resolution_px: pixels across each 90° cube-map face (angular resolution of integration).
         min_range_m, max_range_m: points outside are ignored.
@@ -60,20 +67,24 @@ class MapperConfig:
 
 @dataclass
 class MapperResult:
-    """The trajectory, the TSDF mesh, how many sweeps went in and the fraction of their points
-    judged dynamic (left out of the mesh)."""
+    """The trajectory, the TSDF mesh, how many sweeps went in, the fraction of their points judged
+    dynamic (left out of the mesh), the verdict on the trajectory and the settings used."""
 
     trajectory: Trajectory
     mesh: trimesh.Trimesh
     scans_used: int
-    dynamic_fraction: float = 0.0
+    dynamic_fraction: float
+    quality: MappingQuality
+    settings: dict[str, float | int | bool]
 
 
-def _voxel_size(scan: Scan, config: MapperConfig) -> float:
+def odometry_voxel(ranges: np.ndarray, config: MapperConfig) -> float:
+    """KISS-ICP's voxel size for sweeps whose first usable ranges are ``ranges`` ``(N,)`` (m):
+    ``config.voxel_size_m``, else :data:`VOXEL_PER_RANGE` of their 95th percentile within
+    0.1–1 m (KISS-ICP's own default is 1/100 of the maximum range)."""
     if config.voxel_size_m is not None:
         return config.voxel_size_m
-    ranges = np.linalg.norm(scan.points, axis=1)
-    return float(np.clip(np.median(ranges) / 30.0, 0.1, 1.0))
+    return float(np.clip(VOXEL_PER_RANGE * np.percentile(ranges, 95), 0.1, 1.0))
 
 
 def cube_depth_images(points: np.ndarray, resolution: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -204,40 +215,73 @@ def run_mapper(
     """Odometry and a TSDF mesh from LiDAR scans (in time order).
 
     Poses are ``T_world_lidar`` with the world = the LiDAR frame of the first scan, stamped on the
-    scans' host clock at each sweep's :func:`~rig.lidar_odometry.information_time`. A scan is
-    de-skewed once the next one's pose is known (with the poses before, at and after it) and
-    integrated once the sweeps it is compared with for moving objects are in
-    (:func:`~slam_bridge.dynamic_points.label_dynamic`); their points are left out of the mesh.
+    scans' host clock when each holds (:func:`~rig.lidar_odometry.sweep_information`). A scan is
+    de-skewed once the next one's pose is known (with the poses before, at and after it) and its
+    moving points are found once the sweeps it is compared with are in
+    (:func:`~slam_bridge.dynamic_points.label_dynamic`). Its static points are then registered
+    again, by a second odometry that never sees a moving point, and integrated at that pose; the
+    difference between the two trajectories goes into the :class:`MappingQuality`.
     """
     tsdf = _TsdfIntegrator(config)
-    t_ns: list[int] = []
-    poses: list[np.ndarray] = []
+    log = _OdometryLog()
+    static_odometry: SweepOdometry | None = None
+    static_poses: list[np.ndarray] = []
     counts = {"points": 0, "dynamic": 0}
-    for _, view, dynamic in label_dynamic(
-        _deskewed_sweeps(scans, config, t_ns, poses, progress), config.dynamic
-    ):
+    for _, view, dynamic in label_dynamic(_deskewed_sweeps(scans, config, log, progress), config.dynamic):
         counts["points"] += len(dynamic)
         counts["dynamic"] += int(dynamic.sum())
         static = transform_points(invert(view.T_world_sensor), view.points_world[~dynamic])
-        tsdf.integrate(static, view.T_world_sensor)
-    if len(poses) < 2:
-        raise InputError(f"only {len(poses)} usable LiDAR scans; the mapper needs at least 2", field="scans")
-    trajectory = Trajectory.from_poses(np.array(t_ns, dtype=np.int64), np.stack(poses))
+        pose = view.T_world_sensor
+        if config.dynamic is not None:
+            if static_odometry is None:
+                static_odometry = SweepOdometry(log.voxel_m, config.max_range_m, config.min_range_m)
+            registered = static if len(static) >= 100 else transform_points(invert(pose), view.points_world)
+            pose = static_odometry.register_rigid(registered)
+        static_poses.append(pose)
+        tsdf.integrate(static, pose)
+    if len(log.poses) < 2:
+        raise InputError(
+            f"only {len(log.poses)} usable LiDAR scans; the mapper needs at least 2", field="scans"
+        )
+    poses = np.stack(static_poses)
+    trajectory = Trajectory.from_poses(np.array(log.t_ns, dtype=np.int64), poses)
     dynamic_fraction = counts["dynamic"] / max(counts["points"], 1)
-    return MapperResult(trajectory, tsdf.mesh(), len(poses), dynamic_fraction)
+    quality = judge_mapping(
+        np.stack(log.poses)[:, :3, 3], poses[:, :3, 3], dynamic_fraction, np.array(log.weakest_information),
+        np.einsum("nij,nj->ni", poses[:, :3, :3], np.array(log.weakest_direction)), np.array(log.threshold_m),
+    )  # fmt: skip
+    settings = {
+        "voxel_m": log.voxel_m, "points_per_voxel": ODOMETRY_POINTS_PER_VOXEL,
+        "max_range_m": config.max_range_m, "tsdf_voxel_m": config.tsdf_voxel_m,
+        "static_reregistration": config.dynamic is not None,
+    }  # fmt: skip
+    return MapperResult(trajectory, tsdf.mesh(), len(poses), dynamic_fraction, quality, settings)
+
+
+@dataclass
+class _OdometryLog:
+    """Per registered sweep: its stamp (ns), pose, smallest translation information and its
+    direction (sensor frame), and KISS-ICP's threshold; and the voxel size chosen."""
+
+    voxel_m: float = 0.0
+    t_ns: list[int] = field(default_factory=list)
+    poses: list[np.ndarray] = field(default_factory=list)
+    weakest_information: list[float] = field(default_factory=list)
+    weakest_direction: list[np.ndarray] = field(default_factory=list)
+    threshold_m: list[float] = field(default_factory=list)
 
 
 def _deskewed_sweeps(
     scans: Iterable[Scan],
     config: MapperConfig,
-    t_ns: list[int],
-    poses: list[np.ndarray],
+    log: _OdometryLog,
     progress: Callable[[int], None] | None,
 ) -> Iterator[tuple[float, np.ndarray, np.ndarray]]:
-    """Register each usable scan (appending its stamp and pose to ``t_ns`` and ``poses``) and
-    yield the one before it de-skewed: ``(t_s, points (N, 3) in the sensor frame, T_world_sensor)``."""
+    """Register each usable scan (recording it in ``log``) and yield the one before it de-skewed:
+    ``(t_s, points (N, 3) in the sensor frame, T_world_sensor)``."""
     odometry: SweepOdometry | None = None
     pending: tuple[np.ndarray, np.ndarray] | None = None  # the last scan's points and their times (ns)
+    t_ns, poses = log.t_ns, log.poses
 
     def deskew_pending(pose_index: int) -> tuple[float, np.ndarray, np.ndarray]:
         recent = Trajectory.from_poses(np.array(t_ns[-3:], dtype=np.int64), np.stack(poses[-3:]))
@@ -257,10 +301,14 @@ def _deskewed_sweeps(
         points = scan.points[keep].astype(np.float64)
         times = scan.point_time_s[keep].astype(np.float64)
         if odometry is None:
-            odometry = SweepOdometry(_voxel_size(scan, config), config.max_range_m, config.min_range_m)
-        held_s, pose = odometry.register(points, times)
-        t_ns.append(int(scan.t_host) + round(held_s * 1e9))
+            log.voxel_m = odometry_voxel(ranges[keep], config)
+            odometry = SweepOdometry(log.voxel_m, config.max_range_m, config.min_range_m)
+        pose, information = odometry.register(points, times)
+        t_ns.append(int(scan.t_host) + round(information.held_s * 1e9))
         poses.append(pose)
+        log.weakest_information.append(float(information.translation_information[0]))
+        log.weakest_direction.append(information.weakest_direction)
+        log.threshold_m.append(odometry.threshold_m)
         if pending is not None:
             yield deskew_pending(-2)
         pending = (points, int(scan.t_host) + np.round(times * 1e9).astype(np.int64))

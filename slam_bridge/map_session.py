@@ -3,23 +3,30 @@ and the slam stage of ``lts reconstruct`` without ``--slam``)."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rig.atomic_file import write_atomic
 from slam_bridge.fallback_mapper import MapperConfig, run_mapper
+from slam_bridge.mapping_quality import MappingQuality
 from slam_bridge.slam_dir import write_slam_dir
 
 if TYPE_CHECKING:
     from rig.session import Recording
 
 
+#: The mapper's settings and its verdict on the trajectory, beside mesh.ply and trajectory.tum.
+MAPPING_FILE = "mapping.json"
+
+
 @dataclass(frozen=True)
 class MapSummary:
-    """What the mapper wrote into ``out``."""
+    """What the mapper wrote into ``out``, the settings it chose and its verdict."""
 
     out: str
     scans_used: int
@@ -27,14 +34,28 @@ class MapSummary:
     faces: int
     path_length_m: float
     dynamic_fraction: float
+    settings: dict[str, float | int | bool]
+    quality: MappingQuality
 
-    def describe(self) -> str:
-        """One line for the user."""
-        return (
+    def describe(self) -> list[str]:
+        """Lines for the user: what was written, the settings, the verdict and its reasons."""
+        s, q = self.settings, self.quality
+        lines = [
             f"wrote {self.out}/mesh.ply ({self.faces} faces) and trajectory.tum ({self.poses} poses, "
             f"{self.path_length_m:.2f} m); {100 * self.dynamic_fraction:.1f} % of the LiDAR points, judged "
-            "moving (other sweeps see through them), were left out of the mesh"
-        )
+            "moving (other sweeps see through them), were left out of the mesh",
+            f"odometry: KISS-ICP voxel {s['voxel_m']:.2f} m, {s['points_per_voxel']} points per voxel, "
+            f"ranges up to {s['max_range_m']:g} m"
+            + (", the static points registered again" if s["static_reregistration"] else "")
+            + f"; TSDF voxel {s['tsdf_voxel_m']:g} m",
+            f"trajectory: {q.verdict}"
+            + (
+                f" (moving objects moved it by at most {q.dynamic_shift_m:.2f} m)"
+                if q.verdict == "ok"
+                else ""
+            ),
+        ]
+        return lines + [f"  - {reason}" for reason in q.reasons]
 
 
 def map_session(
@@ -45,8 +66,9 @@ def map_session(
     progress: Callable[[int, int], None] | None = None,
 ) -> MapSummary:
     """Map the LiDAR sweeps of ``session`` (an open recording or its path; topic ``points_topic``,
-    else the recording's choice) with the fallback mapper and write the cleaned mesh and the
-    trajectory into the SLAM folder ``out``. ``progress(done, total)`` follows the sweeps."""
+    else the recording's choice) with the fallback mapper and write the cleaned mesh, the
+    trajectory and :data:`MAPPING_FILE` into the SLAM folder ``out``. ``progress(done, total)``
+    follows the sweeps."""
     from rig.session import as_recording, find_topics
 
     reader = as_recording(session)
@@ -59,7 +81,9 @@ def map_session(
     )
     mesh, _ = write_slam_dir(out, result.mesh, result.trajectory)
     steps = np.diff(result.trajectory.translations, axis=0)
-    return MapSummary(
+    summary = MapSummary(
         str(out), result.scans_used, len(result.trajectory), len(mesh.faces),
-        float(np.linalg.norm(steps, axis=1).sum()), result.dynamic_fraction,
+        float(np.linalg.norm(steps, axis=1).sum()), result.dynamic_fraction, result.settings, result.quality,
     )  # fmt: skip
+    write_atomic(Path(out) / MAPPING_FILE, json.dumps(asdict(summary), indent=2) + "\n")
+    return summary

@@ -47,14 +47,31 @@ def test_mapper_on_a_quick_session(quick_room: Path) -> None:
     assert len(result.mesh.faces) > 1000
 
 
-def test_lts_slam_run_writes_a_slam_folder(quick_room: Path, tmp_path: Path) -> None:
-    lts = Path(sys.executable).parent / "lts"
-    args = [lts, "slam", "run", quick_room / "session.mcap", "--out", tmp_path / "slam", "--json"]
-    result = subprocess.run(args, capture_output=True, text=True, timeout=600)
-    assert result.returncode == 0, result.stderr
-    summary = json.loads(result.stdout)
-    mesh, trajectory = load_slam_dir(tmp_path / "slam")
-    assert summary["poses"] == len(trajectory) == 30 and len(mesh.faces) == summary["faces"] > 1000
+def test_lts_slam_run_writes_the_same_slam_folder_with_one_or_two_threads(
+    quick_room: Path, tmp_path: Path
+) -> None:
+    """Run as a user would, once with one thread per library and once with two: the same bytes
+    (KISS-ICP registers on one thread whatever the machine; the TSDF and the canonical mesh order
+    do not depend on the thread count)."""
+    outputs = []
+    for threads in ("1", "2"):
+        out = tmp_path / f"slam{threads}"
+        env = {
+            **os.environ,
+            "OMP_NUM_THREADS": threads,
+            "OPENBLAS_NUM_THREADS": threads,
+            "MKL_NUM_THREADS": threads,
+        }
+        args = [LTS, "slam", "run", quick_room / "session.mcap", "--out", out, "--json"]
+        result = subprocess.run(args, capture_output=True, text=True, timeout=600, env=env)
+        assert result.returncode == 0, result.stderr
+        summary = json.loads(result.stdout)
+        mesh, trajectory = load_slam_dir(out)
+        assert summary["poses"] == len(trajectory) == 30 and len(mesh.faces) == summary["faces"] > 1000
+        assert summary["quality"]["verdict"] == "ok" and 0.1 <= summary["settings"]["voxel_m"] < 0.2
+        assert json.loads((out / "mapping.json").read_text()) == summary
+        outputs.append([(out / name).read_bytes() for name in ("trajectory.tum", "mesh.ply")])
+    assert outputs[0] == outputs[1]
 
 
 @pytest.mark.slow
