@@ -8,7 +8,7 @@ import numpy as np
 
 from rig.errors import InputError
 from rig.trajectory import Trajectory
-from rig.transforms import make_transform, transform_points
+from rig.transforms import distance_and_angle, make_transform, transform_points
 
 
 def _matched(source: np.ndarray, target: np.ndarray, item: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -123,13 +123,12 @@ def relative_pose_error(estimate: Trajectory, reference: Trajectory, delta: int 
         )
     est = estimate.poses[covered]
     ref = reference.interpolate(estimate.t_ns[covered])
-    est_motion = np.linalg.inv(est[:-delta]) @ est[delta:]
-    ref_motion = np.linalg.inv(ref[:-delta]) @ ref[delta:]
-    error = np.linalg.inv(ref_motion) @ est_motion
-    translation = np.linalg.norm(error[:, :3, 3], axis=1)
-    cos_angle = np.clip((np.trace(error[:, :3, :3], axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
-    rotation = np.degrees(np.arccos(cos_angle))
+    # The error's translation and angle are the distance and angle between the two motions.
+    translation, angle = distance_and_angle(
+        np.linalg.inv(est[:-delta]) @ est[delta:], np.linalg.inv(ref[:-delta]) @ ref[delta:]
+    )
+    rotation = np.degrees(angle)
     return RelativePoseError(
         float(np.sqrt(np.mean(translation**2))), float(translation.max()),
-        float(np.sqrt(np.mean(rotation**2))), float(rotation.max()), len(error), delta,
+        float(np.sqrt(np.mean(rotation**2))), float(rotation.max()), len(translation), delta,
     )  # fmt: skip
