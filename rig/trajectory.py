@@ -16,6 +16,11 @@ _UNIT_QUAT_TOL = 1e-3
 _ROTATION_TOL = 1e-2
 
 
+def path_length(positions: np.ndarray) -> float:
+    """Length (m) of the polyline through positions ``(N, 3)``."""
+    return float(np.linalg.norm(np.diff(positions, axis=0), axis=1).sum())
+
+
 @dataclass(frozen=True, eq=False)
 class Trajectory:
     """Poses ``T_world_body`` at strictly increasing integer-nanosecond times.
@@ -145,6 +150,11 @@ class Trajectory:
     @property
     def duration_s(self) -> float:
         return (self.t_end_ns - self.t_start_ns) * 1e-9
+
+    @property
+    def path_length_m(self) -> float:
+        """Length of the path through the positions (m)."""
+        return path_length(self.translations)
 
     def covers(self, t_ns: np.ndarray | int) -> np.ndarray:
         """Boolean mask ``(M,)`` (or scalar): which query times lie within the trajectory's span."""

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 
 from rig.cli_support import console, emit_json
@@ -22,13 +21,12 @@ def _read(path: Path, fmt: str | None, times: Path | None, rate: float | None) -
 
 def trajectory_summary(trajectory: Trajectory) -> dict:
     """Counts, span, path length and end poses of a trajectory, as plain JSON-able values."""
-    steps = np.linalg.norm(np.diff(trajectory.translations, axis=0), axis=1)
     return {
         "poses": len(trajectory),
         "first_t_ns": trajectory.t_start_ns,
         "last_t_ns": trajectory.t_end_ns,
         "duration_s": trajectory.duration_s,
-        "path_length_m": float(steps.sum()),
+        "path_length_m": trajectory.path_length_m,
         "first_pose": trajectory.poses[0].tolist(),
         "last_pose": trajectory.poses[-1].tolist(),
     }

@@ -69,13 +69,12 @@ class MapperConfig:
 
 @dataclass
 class MapperResult:
-    """The trajectory, the TSDF mesh, how many sweeps went in, the fraction of their points judged
-    dynamic (left out of the mesh), the verdict on the trajectory and the settings used."""
+    """The trajectory, the TSDF mesh, how many sweeps went in, the verdict on the trajectory (with
+    the fraction of points judged moving, left out of the mesh) and the settings used."""
 
     trajectory: Trajectory
     mesh: trimesh.Trimesh
     scans_used: int
-    dynamic_fraction: float
     quality: MappingQuality
     settings: dict[str, float | int | bool]
 
@@ -232,13 +231,13 @@ def run_mapper(
     for _, view, dynamic in label_dynamic(_deskewed_sweeps(scans, config, log, progress), config.dynamic):
         counts["points"] += len(dynamic)
         counts["dynamic"] += int(dynamic.sum())
-        static = transform_points(invert(view.T_world_sensor), view.points_world[~dynamic])
         pose = view.T_world_sensor
+        sensor = transform_points(invert(pose), view.points_world)
+        static = sensor[~dynamic]
         if config.dynamic is not None:
             if static_odometry is None:
                 static_odometry = SweepOdometry(log.voxel_m, config.max_range_m, config.min_range_m)
-            registered = static if len(static) >= 100 else transform_points(invert(pose), view.points_world)
-            pose = static_odometry.register_rigid(registered)
+            pose = static_odometry.register_rigid(static if len(static) >= 100 else sensor)
         static_poses.append(pose)
         tsdf.integrate(static, pose)
     if len(log.poses) < 2:
@@ -257,7 +256,7 @@ def run_mapper(
         "max_range_m": config.max_range_m, "tsdf_voxel_m": config.tsdf_voxel_m,
         "static_reregistration": config.dynamic is not None,
     }  # fmt: skip
-    return MapperResult(trajectory, tsdf.mesh(), len(poses), dynamic_fraction, quality, settings)
+    return MapperResult(trajectory, tsdf.mesh(), len(poses), quality, settings)
 
 
 @dataclass

@@ -9,8 +9,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from rig.atomic_file import write_atomic
 from slam_bridge.fallback_mapper import MapperConfig, run_mapper
 from slam_bridge.mapping_quality import MappingQuality
@@ -80,10 +78,9 @@ def map_session(
         progress=None if progress is None else lambda i: progress(i + 1, total),
     )
     mesh, _ = write_slam_dir(out, result.mesh, result.trajectory)
-    steps = np.diff(result.trajectory.translations, axis=0)
     summary = MapSummary(
         str(out), result.scans_used, len(result.trajectory), len(mesh.faces),
-        float(np.linalg.norm(steps, axis=1).sum()), result.dynamic_fraction, result.settings, result.quality,
+        result.trajectory.path_length_m, result.quality.dynamic_fraction, result.settings, result.quality,
     )  # fmt: skip
     write_atomic(Path(out) / MAPPING_FILE, json.dumps(asdict(summary), indent=2) + "\n")
     return summary

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rig.trajectory import path_length
+
 #: A sweep whose smallest translation-information eigenvalue (of three summing to 1) is below this
 #: has a degenerate direction. Measured medians (10th percentile): virtual room 0.27 (0.26),
 #: corridor 0.20 (0.18), street 0.12 (0.10, along the road); a surface-free direction gives ~0.
@@ -67,7 +69,7 @@ def judge_mapping(
     points and with static points only (the same when no removal ran), the smallest
     translation-information eigenvalue ``(S,)`` and its direction ``(S, 3)`` (world frame), and
     KISS-ICP's adaptive threshold ``(S,)`` (m)."""
-    path = float(np.linalg.norm(np.diff(static_positions, axis=0), axis=1).sum())
+    path = path_length(static_positions)
     shift = (
         float(np.linalg.norm(raw_positions - static_positions, axis=1).max()) if len(raw_positions) else 0.0
     )
