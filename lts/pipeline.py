@@ -243,6 +243,8 @@ def build_scene(
     shutil.rmtree(out, ignore_errors=True)
     built = build(session, load_calibration(calib), slam, out, config)
     log(f"  {len(built.keyframes)} keyframes")
+    if built.matching_summary() is not None:
+        log(f"  {built.matching_summary()}")
 
 
 def train_key(o: ReconstructOptions) -> list[str]:

@@ -25,6 +25,13 @@ from slam_bridge.prepare_config import DEFAULT_MAX_SIZE
 if TYPE_CHECKING:
     from slam_bridge.pose_refinement import RefinementReport
 
+#: The progress bar's text for each step of building a scene.
+STEP_NAMES = {
+    "keyframes": "building keyframes",
+    "features": "SIFT features",
+    "matching": "matching keyframe pairs",
+}
+
 #: ``--max-size`` and ``--downscale``, shared with ``lts reconstruct``.
 MAX_SIZE_OPTION = typer.Option(
     DEFAULT_MAX_SIZE,
@@ -110,14 +117,14 @@ def prepare_command(
         downscale=downscale,
     )
     with Progress(console=console, transient=True) as bar:
-        task = bar.add_task("building keyframes", total=None)
+        task = bar.add_task(STEP_NAMES["keyframes"], total=None)
         built = build_scene(
             recording,
             calibration,
             slam,
             out,
             config,
-            progress=lambda i, n: bar.update(task, completed=i, total=n),
+            progress=lambda step, i, n: bar.update(task, description=STEP_NAMES[step], completed=i, total=n),
         )
     keyframes, refinement = built.keyframes, built.refinement
     summary = {
@@ -126,7 +133,11 @@ def prepare_command(
         "train": sum(k.split == "train" for k in keyframes),
         "test": sum(k.split == "test" for k in keyframes),
         "pose_refinement": None if refinement is None else asdict(refinement),
+        "matching": None if built.matching is None else asdict(built.matching),
+        "triangulation_s": built.triangulation_s,
     }
+    if built.matching_summary() is not None:
+        console.print(built.matching_summary())
     if refinement is not None:
         console.print(refinement_summary(refinement))
     if json_out:

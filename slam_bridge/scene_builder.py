@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import shutil
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -24,7 +25,7 @@ from rig.errors import InputError
 from rig.mesh_rays import mesh_raycaster
 from rig.messages import Frame
 from rig.session import Recording, as_recording, find_topics
-from slam_bridge.colmap_matches import match_keyframes, read_correspondences
+from slam_bridge.colmap_matches import MatchingReport, Progress, match_keyframes, read_correspondences
 from slam_bridge.keyframe_lidar import keyframe_lidar, write_keyframe_lidar
 from slam_bridge.keyframe_normals import write_keyframe_normals
 from slam_bridge.keyframe_selection import (
@@ -45,10 +46,26 @@ DEFAULT_CONFIG = PrepareConfig()
 
 @dataclass(frozen=True)
 class SceneBuild:
-    """What :func:`build_scene` wrote: the keyframes and, with ``refine_poses``, the refinement's report."""
+    """What :func:`build_scene` wrote: the keyframes and, with ``refine_poses``, the refinement's
+    report; with ``sparse_points`` or ``refine_poses``, matching's; with ``sparse_points``, the
+    seconds triangulation took."""
 
     keyframes: list[Keyframe]
     refinement: RefinementReport | None
+    matching: MatchingReport | None
+    triangulation_s: float | None
+
+    def matching_summary(self) -> str | None:
+        """One line on matching and triangulation (None when neither ran)."""
+        m = self.matching
+        if m is None:
+            return None
+        line = (
+            f"matching: {m.keypoints_mean:.0f} keypoints per keyframe, {m.matched_pairs} of {m.pairs} "
+            f"keyframe pairs matched, {m.matches} matches; features {m.extraction_s:.1f} s, "
+            f"pairs {m.pairing_s:.1f} s, matching {m.matching_s:.1f} s"
+        )
+        return line if self.triangulation_s is None else f"{line}, triangulation {self.triangulation_s:.1f} s"
 
 
 def build_scene(
@@ -57,11 +74,12 @@ def build_scene(
     slam_dir: str | Path,
     out_dir: str | Path,
     config: PrepareConfig = DEFAULT_CONFIG,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Progress | None = None,
 ) -> SceneBuild:
-    """Write the scene folder (see :mod:`slam_bridge.scene`); ``progress(done, total)`` is called
-    after each keyframe's image, LiDAR points and normal prior. ``session``: an open recording
-    (its topic map and time span apply) or its path."""
+    """Write the scene folder (see :mod:`slam_bridge.scene`); ``progress(step, done, total)`` is
+    called after each keyframe's image, LiDAR points and normal prior (step ``"keyframes"``) and
+    as matching goes (:func:`~slam_bridge.colmap_matches.match_keyframes`). ``session``: an open
+    recording (its topic map and time span apply) or its path."""
     reader = as_recording(session)
     topics = find_topics(reader, config.image_topic, config.points_topic)
     mesh, trajectory = load_slam_dir(slam_dir)
@@ -84,7 +102,9 @@ def build_scene(
     frames = reader.frames_at(topics.image, chosen)
     write_keyframe_images(out, frames, keyframes, calibration.camera, target, reader.path, done)
     raycaster = mesh_raycaster(mesh)
-    database = _matches(out, target, keyframes) if config.sparse_points or config.refine_poses else None
+    database, matching = None, None
+    if config.sparse_points or config.refine_poses:
+        database, matching = _matches(out, target, keyframes, raycaster, progress)
     refinement = None
     if config.refine_poses:
         keyframes, refinement = _refined(database, target, keyframes, raycaster)
@@ -96,21 +116,30 @@ def build_scene(
         out, keyframes, chosen, calibration.camera, target, raycaster, config.normals_dir, done
     )
     shutil.copyfile(Path(slam_dir) / MESH_FILE, out / "mesh.ply")
-    sparse_file = _write_sparse_points(database, out, keyframes) if config.sparse_points else None
-    report = None if refinement is None else asdict(refinement)
-    source = {"session": str(reader.path), "slam_dir": str(slam_dir), "pose_refinement": report}
+    sparse_file, triangulation_s = None, None
+    if config.sparse_points:
+        started = time.perf_counter()
+        sparse_file = _write_sparse_points(database, out, keyframes)
+        triangulation_s = time.perf_counter() - started
+    source = {
+        "session": str(reader.path),
+        "slam_dir": str(slam_dir),
+        "pose_refinement": None if refinement is None else asdict(refinement),
+        "matching": None if matching is None else asdict(matching),
+        "triangulation_s": triangulation_s,
+    }
     write_scene_index(out, target, keyframes, config, source, sparse_points=sparse_file)
-    return SceneBuild(keyframes, refinement)
+    return SceneBuild(keyframes, refinement, matching, triangulation_s)
 
 
-def _counter(progress: Callable[[int, int], None] | None, total: int) -> Callable[[], None]:
-    """A callback that reports one more step of ``total`` to ``progress`` (if any) on each call."""
+def _counter(progress: Progress | None, total: int) -> Callable[[], None]:
+    """A callback that reports one more keyframe step of ``total`` to ``progress`` (if any) on each call."""
     steps = iter(range(1, total + 1))
 
     def done() -> None:
         step = next(steps)
         if progress is not None:
-            progress(step, total)
+            progress("keyframes", step, total)
 
     return done
 
@@ -141,9 +170,13 @@ def write_keyframe_images(
         done()
 
 
-def _matches(out: Path, camera: CameraModel, keyframes: list[Keyframe]) -> Path:
-    """COLMAP's database of matches between the keyframe images (in ``out/colmap``)."""
-    return match_keyframes(out / "images", out / "colmap", camera, [f"{k.name}.png" for k in keyframes])
+def _matches(
+    out: Path, camera: CameraModel, keyframes: list[Keyframe], raycaster, progress: Progress | None
+) -> tuple[Path, MatchingReport]:
+    """COLMAP's database of matches between the keyframe images (in ``out/colmap``), and its report."""
+    names = [f"{k.name}.png" for k in keyframes]
+    poses = np.stack([k.T_world_cam for k in keyframes])
+    return match_keyframes(out / "images", out / "colmap", camera, names, poses, raycaster, progress)
 
 
 def _refined(

@@ -1,35 +1,58 @@
-"""Keyframe matching with COLMAP gives the same matches on every run."""
+"""Keyframe matching gives the same database whatever the thread count, and only geometrically
+consistent matches."""
 
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+import pycolmap
+import trimesh
 
+from rig.mesh_rays import mesh_raycaster
 from slam_bridge.colmap_matches import match_keyframes, read_correspondences
+from slam_bridge.guided_matching import tolerance_px
 from slam_bridge.scene import load_scene
 
 
-def test_matching_the_same_keyframes_twice_gives_the_same_matches(
+def test_matching_with_one_and_two_threads_gives_the_same_matches(
     quick_room: Path, gt_slam_dir: Path, tmp_path: Path
 ) -> None:
     lts = Path(sys.executable).parent / "lts"
     calib = quick_room / "ground_truth" / "calib.yaml"
     scene_dir = tmp_path / "scene"
     prepare = [lts, "prepare", quick_room / "session.mcap", "--calib", calib, "--slam", gt_slam_dir]
-    subprocess.run(
-        [*prepare, "--out", scene_dir],
-        check=True,
-        capture_output=True,
-        timeout=300,
-    )
+    subprocess.run([*prepare, "--out", scene_dir], check=True, capture_output=True, timeout=300)
     scene = load_scene(scene_dir)
     names = [f"{k.name}.png" for k in scene.keyframes]
-    databases = [
-        match_keyframes(scene_dir / "images", tmp_path / f"run{i}", scene.camera, names) for i in range(3)
+    poses = np.stack([k.T_world_cam for k in scene.keyframes])
+    raycaster = mesh_raycaster(trimesh.load(scene_dir / "mesh.ply", process=False))
+    images = scene_dir / "images"
+    runs = [
+        match_keyframes(images, tmp_path / f"run{t}", scene.camera, names, poses, raycaster, threads=t)
+        for t in (1, 2, 2)
     ]
-    runs = [read_correspondences(database, names) for database in databases]
-    assert len(runs[0]) > 100
-    for other in runs[1:]:
+    reports = [report for _, report in runs]
+    assert reports[0].matches > 100
+    matches = [read_correspondences(database, names) for database, _ in runs]
+    for other in matches[1:]:
         for field in ("observer", "source", "uv_observer", "uv_source", "match"):
-            np.testing.assert_array_equal(getattr(other, field), getattr(runs[0], field))
+            np.testing.assert_array_equal(getattr(other, field), getattr(matches[0], field))
+    # every match lies on its epipolar line (the poses are true)
+    first = matches[0]
+    T_b_a = np.linalg.inv(poses[first.observer]) @ poses[first.source]
+    K_inv = np.linalg.inv(scene.camera.K)
+
+    def homogeneous(uv: np.ndarray) -> np.ndarray:
+        return np.concatenate([uv, np.ones((len(uv), 1))], axis=1)
+
+    rays_a = np.einsum("nij,nj->ni", T_b_a[:, :3, :3], homogeneous(first.uv_source) @ K_inv.T)
+    lines = np.cross(T_b_a[:, :3, 3], rays_a) @ K_inv  # in B's pixels
+    distance = np.abs(np.sum(lines * homogeneous(first.uv_observer), axis=1))
+    assert np.all(distance <= tolerance_px(scene.camera) * np.linalg.norm(lines[:, :2], axis=1) + 1e-6)
+    db = pycolmap.Database.open(runs[0][0])
+    try:
+        assert db.num_frames() == len(names)
+        assert db.num_verified_image_pairs() == reports[0].matched_pairs
+    finally:
+        db.close()

@@ -1,0 +1,86 @@
+"""Which keyframe pairs to match: those whose cameras see the same surface, judged from the poses
+and the SLAM mesh, plus each keyframe's neighbours in time.
+
+Matching every pair grows with the square of the keyframe count; a keyframe here is matched with
+at most :data:`MAX_PARTNERS` others, so the pair count grows linearly with the trajectory. A
+revisit (loop closure) sees the same surface, so it is found like any other pair.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from rig.camera import CameraModel
+from rig.mesh_rays import cast_camera_rays
+from rig.transforms import invert, transform_points
+
+#: Rays cast per keyframe, on an even pixel grid, to find the surface it sees.
+SAMPLES_PER_KEYFRAME = 400
+#: Partners per keyframe, chosen by co-visibility (neighbours in time come on top).
+MAX_PARTNERS = 8
+#: Neighbours in time, before and after, matched whatever their co-visibility.
+TIME_NEIGHBOURS = 1
+#: A pair is co-visible when each keyframe sees at least this fraction of the other's surface samples.
+MIN_COVISIBILITY = 0.1
+#: Viewing directions further apart than this (degrees) are not matched: SIFT does not hold up to it.
+MAX_VIEW_ANGLE_DEG = 60.0
+#: A surface sample counts as seen by another keyframe when that keyframe's ray towards it hits the
+#: mesh no nearer than this fraction of its distance (it is not hidden behind another surface).
+OCCLUSION_TOLERANCE = 0.05
+
+
+def surface_samples(raycaster: Any, camera: CameraModel, T_world_cam: np.ndarray) -> np.ndarray:
+    """World points ``(S, 3)`` where the keyframe's rays on an even grid of about
+    :data:`SAMPLES_PER_KEYFRAME` pixels hit the mesh (rays that miss are left out)."""
+    step = max(1.0, np.sqrt(camera.width * camera.height / SAMPLES_PER_KEYFRAME))
+    u, v = np.meshgrid(np.arange(step / 2, camera.width, step), np.arange(step / 2, camera.height, step))
+    rays = camera.unproject(np.stack([u.ravel(), v.ravel()], axis=1))
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    distance = cast_camera_rays(raycaster, T_world_cam, rays)["t_hit"]
+    hit = np.isfinite(distance)
+    return transform_points(T_world_cam, rays[hit] * distance[hit, None])
+
+
+def seen_fraction(raycaster: Any, camera: CameraModel, T_world_cam: np.ndarray, samples: np.ndarray) -> float:
+    """The fraction of world points ``samples`` ``(S, 3)`` that the camera at ``T_world_cam``
+    sees: in its image, in front of it and not hidden behind other surfaces of the mesh."""
+    if len(samples) == 0:
+        return 0.0
+    local = transform_points(invert(T_world_cam), samples)
+    inside = camera.in_image(camera.project(local))
+    if not inside.any():
+        return 0.0
+    distance = np.linalg.norm(local[inside], axis=1)
+    hit = cast_camera_rays(raycaster, T_world_cam, local[inside] / distance[:, None])["t_hit"]
+    return float(np.sum(hit >= distance * (1 - OCCLUSION_TOLERANCE)) / len(samples))
+
+
+def covisibility(raycaster: Any, camera: CameraModel, poses: np.ndarray) -> np.ndarray:
+    """Symmetric co-visibility ``(N, N)`` of keyframes at ``poses`` ``(N, 4, 4)`` (``T_world_cam``):
+    the smaller of the fractions of each one's surface samples the other sees (0 on the diagonal
+    and between views more than :data:`MAX_VIEW_ANGLE_DEG` apart)."""
+    samples = [surface_samples(raycaster, camera, pose) for pose in poses]
+    axes = poses[:, :3, 2]
+    angle_ok = axes @ axes.T >= np.cos(np.radians(MAX_VIEW_ANGLE_DEG))
+    seen = np.zeros((len(poses), len(poses)))
+    for i, j in zip(*np.nonzero(angle_ok), strict=True):
+        if i != j:
+            seen[i, j] = seen_fraction(raycaster, camera, poses[j], samples[i])
+    return np.minimum(seen, seen.T)
+
+
+def keyframe_pairs(raycaster: Any, camera: CameraModel, poses: np.ndarray) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)``, ``i < j``, of keyframes at ``poses`` ``(N, 4, 4)`` (in time order) to
+    match: each keyframe with its :data:`TIME_NEIGHBOURS` neighbours in time and its
+    :data:`MAX_PARTNERS` most co-visible others (at least :data:`MIN_COVISIBILITY`)."""
+    score = covisibility(raycaster, camera, poses)
+    pairs = set()
+    for i in range(len(poses)):
+        for j in range(i + 1, min(i + 1 + TIME_NEIGHBOURS, len(poses))):
+            pairs.add((i, j))
+        # Ties broken by time (the stable sort keeps index order), so the pairs are reproducible.
+        order = np.argsort(-score[i], kind="stable")[:MAX_PARTNERS]
+        pairs.update((min(i, j), max(i, j)) for j in order if score[i, j] >= MIN_COVISIBILITY)
+    return sorted(pairs)
