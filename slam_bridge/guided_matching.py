@@ -112,15 +112,18 @@ def _predict(a: KeyframeFeatures, b: KeyframeFeatures, camera: CameraModel) -> _
 def _allowed(prediction: _Prediction, rows: slice, uv_b: np.ndarray, tolerance: float) -> np.ndarray:
     """Boolean ``(rows, Nb)``: which keypoints of B each keypoint of A in ``rows`` may match."""
     n = len(prediction.centre[rows])
-    allowed = np.ones((n, len(uv_b)), dtype=bool)
-    if prediction.lines is not None:
+    if prediction.lines is None:
+        allowed = np.ones((n, len(uv_b)), dtype=bool)
+    else:
         lines = prediction.lines[rows]
-        allowed &= np.abs(lines[:, :2] @ uv_b.T + lines[:, 2:]) <= tolerance
-    centre, radius = prediction.centre[rows], prediction.radius[rows]
-    constrained = np.isfinite(radius)
-    offset = np.hypot(centre[constrained, 0:1] - uv_b[:, 0], centre[constrained, 1:2] - uv_b[:, 1])
+        allowed = np.abs(lines[:, :2] @ uv_b.T + lines[:, 2:]) <= tolerance
+    # the point window, only where the line allows (a few per cent of the entries)
+    constrained = np.flatnonzero(np.isfinite(prediction.radius[rows]))
+    row, column = np.nonzero(allowed[constrained])
+    centre, radius = prediction.centre[rows][constrained[row]], prediction.radius[rows][constrained[row]]
     with np.errstate(invalid="ignore"):  # a NaN centre (behind B) allows nothing
-        allowed[constrained] &= offset <= radius[constrained, None]
+        outside = ~(np.hypot(*(centre - uv_b[column]).T) <= radius)
+    allowed[constrained[row[outside]], column[outside]] = False
     return allowed
 
 
@@ -141,13 +144,15 @@ def guided_matches(a: KeyframeFeatures, b: KeyframeFeatures, camera: CameraModel
         rows = slice(start, start + ROW_BLOCK)
         descriptors = a.descriptors[rows]
         squared = np.sum(descriptors**2, axis=1)[:, None] + norms_b - 2 * (descriptors @ b.descriptors.T)
+        unrestricted = squared.copy()
         squared[~_allowed(prediction, rows, b.uv, tolerance)] = np.inf
         index = np.arange(len(squared))
         nearest[rows] = np.argmin(squared, axis=1)
         best[rows] = squared[index, nearest[rows]]
-        squared[index, nearest[rows]] = np.inf
-        second[rows] = squared.min(axis=1)
-        squared[index, nearest[rows]] = best[rows]
+        saved = unrestricted[index, nearest[rows]]
+        unrestricted[index, nearest[rows]] = np.inf
+        second[rows] = unrestricted.min(axis=1)
+        unrestricted[index, nearest[rows]] = saved
         block_row = np.argmin(squared, axis=0)
         block_best = squared[block_row, np.arange(len(b.uv))]
         better = block_best < column_best  # strict: the first row wins a tie, as in one argmin
