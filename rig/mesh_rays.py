@@ -38,11 +38,17 @@ def cast_camera_rays(raycaster: Any, T_world_cam: np.ndarray, rays_cam: np.ndarr
     Returns open3d's hit arrays as numpy: ``t_hit`` ``(N,)`` (distance along the ray, inf on a
     miss) and ``primitive_normals`` ``(N, 3)`` (world frame).
     """
+    origins = np.broadcast_to(T_world_cam[:3, 3], rays_cam.shape)
+    return cast_world_rays(raycaster, origins, rays_cam @ T_world_cam[:3, :3].T)
+
+
+def cast_world_rays(raycaster: Any, origins: np.ndarray, directions: np.ndarray) -> dict[str, np.ndarray]:
+    """Cast rays from world ``origins`` ``(N, 3)`` along unit world ``directions`` ``(N, 3)``;
+    returns the same arrays as :func:`cast_camera_rays`."""
     import open3d as o3d
 
-    origins = np.broadcast_to(T_world_cam[:3, 3], rays_cam.shape)
-    dirs = rays_cam @ T_world_cam[:3, :3].T
-    hits = raycaster.cast_rays(o3d.core.Tensor(np.concatenate([origins, dirs], axis=1).astype(np.float32)))
+    rays = np.concatenate([origins, directions], axis=1).astype(np.float32)
+    hits = raycaster.cast_rays(o3d.core.Tensor(rays))
     return {
         "t_hit": hits["t_hit"].numpy().astype(np.float64),
         "primitive_normals": hits["primitive_normals"].numpy().astype(np.float64),

@@ -2,14 +2,18 @@
 
 A keypoint of keyframe A may only match a keypoint of B that lies near its epipolar line in B and,
 where the mesh gives the keypoint's depth, near where that depth puts it. Among those candidates
-the nearest descriptor wins if it passes Lowe's ratio test and is also the candidate's nearest
-(cross-check). The matches obey the known geometry by construction, so no two-view RANSAC is run.
+the nearest descriptor wins if it is also the candidate's nearest (cross-check) and passes Lowe's
+ratio test against the runner-up in the whole of B: a test among the few candidates near the line
+alone passes by default, and on the virtual-rig room it let through 15 % more matches whose points
+lay further from the true mesh (92.7 % instead of 96.4 % within 20 cm). The matches obey the
+known geometry by construction, so no two-view RANSAC is run.
 
 Written here rather than with COLMAP's matchers: its exact CPU matcher took 4 s per pair of real
 1242x375 images (one thread), its approximate one gives different matches from run to run, and
 its guided matching re-estimates the geometry by RANSAC instead of using the poses. The
-descriptor distances are one matrix product of integer-valued float32 descriptors, exact in
+descriptor comparisons are one matrix product of integer-valued float32 descriptors, exact in
 float32 (sums stay below 2^24), so the matches are the same on every machine and thread count.
+Distances and thresholds are COLMAP's: angles between descriptors of length 512.
 """
 
 from __future__ import annotations
@@ -21,10 +25,12 @@ import numpy as np
 from rig.camera import CameraModel
 from rig.transforms import invert
 
-#: Lowe's ratio: the nearest descriptor must be closer than this times the second nearest (COLMAP's).
+#: Length of COLMAP's uint8 SIFT descriptors (up to quantisation).
+DESCRIPTOR_NORM = 512.0
+#: Lowe's ratio on the angles between descriptors (COLMAP's brute-force matcher and default).
 MAX_RATIO = 0.8
-#: Largest descriptor distance accepted, in units of COLMAP's uint8 descriptors (0.7 of unit length).
-MAX_DESCRIPTOR_DISTANCE = 0.7 * 512
+#: Largest angle (rad) between matched descriptors (COLMAP's default).
+MAX_DESCRIPTOR_ANGLE = 0.7
 #: Angular tolerance (degrees) of the geometric checks, for errors in the poses and calibration.
 TOLERANCE_DEG = 0.5
 #: ... but never less than this many pixels (keypoint localisation).
@@ -127,6 +133,12 @@ def _allowed(prediction: _Prediction, rows: slice, uv_b: np.ndarray, tolerance: 
     return allowed
 
 
+def _angle(dot_products: np.ndarray) -> np.ndarray:
+    """Angles (rad) between descriptors from their dot products, as COLMAP measures them (the
+    descriptors' length taken as 512)."""
+    return np.arccos(np.clip(dot_products / DESCRIPTOR_NORM**2, -1.0, 1.0))
+
+
 def guided_matches(a: KeyframeFeatures, b: KeyframeFeatures, camera: CameraModel) -> np.ndarray:
     """Matches ``(M, 2)`` int64 (index in A, index in B) between two keyframes of the
     distortion-free ``camera``; empty when fewer than :data:`MIN_MATCHES`."""
@@ -134,34 +146,30 @@ def guided_matches(a: KeyframeFeatures, b: KeyframeFeatures, camera: CameraModel
     if len(a.uv) < 2 or len(b.uv) < 2:
         return none
     prediction, tolerance = _predict(a, b, camera), tolerance_px(camera)
-    norms_b = np.sum(b.descriptors**2, axis=1)
     nearest = np.zeros(len(a.uv), dtype=np.int64)
-    best = np.full(len(a.uv), np.inf, dtype=np.float32)
-    second = np.full(len(a.uv), np.inf, dtype=np.float32)
-    column_best = np.full(len(b.uv), np.inf, dtype=np.float32)
+    best = np.full(len(a.uv), -np.inf, dtype=np.float32)  # dot products: larger is nearer
+    second = np.full(len(a.uv), -np.inf, dtype=np.float32)
+    column_best = np.full(len(b.uv), -np.inf, dtype=np.float32)
     column_row = np.full(len(b.uv), -1, dtype=np.int64)
     for start in range(0, len(a.uv), ROW_BLOCK):
         rows = slice(start, start + ROW_BLOCK)
-        descriptors = a.descriptors[rows]
-        squared = np.sum(descriptors**2, axis=1)[:, None] + norms_b - 2 * (descriptors @ b.descriptors.T)
-        unrestricted = squared.copy()
-        squared[~_allowed(prediction, rows, b.uv, tolerance)] = np.inf
-        index = np.arange(len(squared))
-        nearest[rows] = np.argmin(squared, axis=1)
-        best[rows] = squared[index, nearest[rows]]
-        saved = unrestricted[index, nearest[rows]]
-        unrestricted[index, nearest[rows]] = np.inf
-        second[rows] = unrestricted.min(axis=1)
-        unrestricted[index, nearest[rows]] = saved
-        block_row = np.argmin(squared, axis=0)
-        block_best = squared[block_row, np.arange(len(b.uv))]
-        better = block_best < column_best  # strict: the first row wins a tie, as in one argmin
+        dots = a.descriptors[rows] @ b.descriptors.T
+        index = np.arange(len(dots))
+        allowed = np.where(_allowed(prediction, rows, b.uv, tolerance), dots, -np.inf)
+        nearest[rows] = np.argmax(allowed, axis=1)
+        best[rows] = allowed[index, nearest[rows]]
+        dots[index, nearest[rows]] = -np.inf  # the runner-up over the whole of B
+        second[rows] = dots.max(axis=1)
+        block_row = np.argmax(allowed, axis=0)
+        block_best = allowed[block_row, np.arange(len(b.uv))]
+        better = block_best > column_best  # strict: the first row wins a tie, as in one argmax
         column_best[better], column_row[better] = block_best[better], start + block_row[better]
     rows = np.arange(len(a.uv))
+    angle = _angle(best)
     ok = (
         np.isfinite(best)
-        & (best <= MAX_DESCRIPTOR_DISTANCE**2)
-        & (best < MAX_RATIO**2 * second)
+        & (angle <= MAX_DESCRIPTOR_ANGLE)
+        & (angle < MAX_RATIO * _angle(second))
         & (column_row[nearest] == rows)  # cross-check
     )
     matches = np.stack([rows[ok], nearest[ok]], axis=1).astype(np.int64)

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from rig.camera import CameraModel
-from rig.mesh_rays import cast_camera_rays
-from rig.transforms import invert, transform_points
+from rig.mesh_rays import cast_camera_rays, cast_world_rays
+from rig.transforms import transform_points
 
 #: Rays cast per keyframe, on an even pixel grid, to find the surface it sees.
 SAMPLES_PER_KEYFRAME = 400
@@ -43,31 +43,46 @@ def surface_samples(raycaster: Any, camera: CameraModel, T_world_cam: np.ndarray
     return transform_points(T_world_cam, rays[hit] * distance[hit, None])
 
 
-def seen_fraction(raycaster: Any, camera: CameraModel, T_world_cam: np.ndarray, samples: np.ndarray) -> float:
-    """The fraction of world points ``samples`` ``(S, 3)`` that the camera at ``T_world_cam``
-    sees: in its image, in front of it and not hidden behind other surfaces of the mesh."""
-    if len(samples) == 0:
-        return 0.0
-    local = transform_points(invert(T_world_cam), samples)
-    inside = camera.in_image(camera.project(local))
-    if not inside.any():
-        return 0.0
-    distance = np.linalg.norm(local[inside], axis=1)
-    hit = cast_camera_rays(raycaster, T_world_cam, local[inside] / distance[:, None])["t_hit"]
-    return float(np.sum(hit >= distance * (1 - OCCLUSION_TOLERANCE)) / len(samples))
+def seen_fractions(
+    raycaster: Any, camera: CameraModel, poses: np.ndarray, samples: np.ndarray, candidates: np.ndarray
+) -> np.ndarray:
+    """The fraction ``(N,)`` of world points ``samples`` ``(S, 3)`` that each camera at ``poses``
+    ``(N, 4, 4)`` sees: in its image, in front of it and not hidden behind other surfaces of the
+    mesh. Only cameras with ``candidates`` ``(N,)`` True are looked at (0 for the others); of
+    those, only the ones whose image holds at least :data:`MIN_COVISIBILITY` of the samples cast
+    rays (one batch for all of them)."""
+    seen = np.zeros(len(poses))
+    if len(samples) == 0 or not candidates.any():
+        return seen
+    index = np.flatnonzero(candidates)
+    R, t = poses[index, :3, :3], poses[index, :3, 3]
+    local = np.einsum("nji,nsj->nsi", R, samples[None] - t[:, None])  # (n, S, 3) in each camera
+    inside = camera.in_image(camera.project(local.reshape(-1, 3))).reshape(len(index), len(samples))
+    enough = inside.mean(axis=1) >= MIN_COVISIBILITY
+    if not enough.any():
+        return seen
+    which, sample = np.nonzero(inside[enough])
+    distance = np.linalg.norm(local[enough][which, sample], axis=1)
+    directions = (samples[sample] - t[enough][which]) / distance[:, None]
+    hit = cast_world_rays(raycaster, t[enough][which], directions)["t_hit"]
+    visible = hit >= distance * (1 - OCCLUSION_TOLERANCE)
+    seen[index[enough]] = np.bincount(which, weights=visible, minlength=int(enough.sum())) / len(samples)
+    return seen
 
 
 def covisibility(raycaster: Any, camera: CameraModel, poses: np.ndarray) -> np.ndarray:
     """Symmetric co-visibility ``(N, N)`` of keyframes at ``poses`` ``(N, 4, 4)`` (``T_world_cam``):
     the smaller of the fractions of each one's surface samples the other sees (0 on the diagonal
     and between views more than :data:`MAX_VIEW_ANGLE_DEG` apart)."""
-    samples = [surface_samples(raycaster, camera, pose) for pose in poses]
     axes = poses[:, :3, 2]
-    angle_ok = axes @ axes.T >= np.cos(np.radians(MAX_VIEW_ANGLE_DEG))
-    seen = np.zeros((len(poses), len(poses)))
-    for i, j in zip(*np.nonzero(angle_ok), strict=True):
-        if i != j:
-            seen[i, j] = seen_fraction(raycaster, camera, poses[j], samples[i])
+    candidates = axes @ axes.T >= np.cos(np.radians(MAX_VIEW_ANGLE_DEG))
+    np.fill_diagonal(candidates, False)
+    seen = np.stack(
+        [
+            seen_fractions(raycaster, camera, poses, surface_samples(raycaster, camera, pose), candidates[i])
+            for i, pose in enumerate(poses)
+        ]
+    )
     return np.minimum(seen, seen.T)
 
 
