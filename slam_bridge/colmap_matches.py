@@ -60,6 +60,14 @@ class MatchingReport:
     matching_s: float
 
 
+def quiet_colmap_log() -> None:
+    """Keep COLMAP's own progress lines (hundreds of INFO lines per run) out of the terminal;
+    its warnings and errors still show."""
+    import pycolmap
+
+    pycolmap.logging.minloglevel = max(pycolmap.logging.minloglevel, int(pycolmap.logging.WARNING))
+
+
 def colmap_camera_params(camera: CameraModel) -> list[float]:
     """``fx, fy, cx, cy`` of a distortion-free pinhole camera in COLMAP's pixel convention."""
     return [camera.fx, camera.fy, camera.cx + COLMAP_PIXEL_OFFSET, camera.cy + COLMAP_PIXEL_OFFSET]
@@ -83,6 +91,7 @@ def match_keyframes(
     ``camera`` is the distortion-free pinhole camera of the images, shared by all of them;
     ``threads``: how many to extract and match with (default: every core; the result is the same).
     """
+    quiet_colmap_log()
     threads = threads or os.cpu_count() or 1
     workspace.mkdir(parents=True, exist_ok=True)
     database = workspace / DATABASE_FILE

@@ -80,7 +80,10 @@ def prepare_command(
         "to use instead of the SLAM mesh's normals.",
     ),
     sparse_points: bool = typer.Option(
-        False, "--sparse-points", help="Triangulate COLMAP sparse points (needed by the TS+ baseline)."
+        False,
+        "--sparse-points",
+        help="Triangulate COLMAP sparse points (needed by the TS+ baseline): SIFT matched between keyframes "
+        "that see the same surface of the SLAM mesh, guided by the poses; the same matches on every run.",
     ),
     refine_poses: bool = typer.Option(
         False,

@@ -15,6 +15,7 @@ import numpy as np
 
 from rig.errors import InputError
 from rig.transforms import invert
+from slam_bridge.colmap_matches import quiet_colmap_log
 from slam_bridge.scene import Keyframe
 
 
@@ -35,6 +36,7 @@ def triangulate_keyframes(
     model is written to ``workspace``."""
     import pycolmap
 
+    quiet_colmap_log()
     given = {f"{k.name}.png": k.T_world_cam for k in keyframes}
     db = pycolmap.Database.open(database)
     try:
