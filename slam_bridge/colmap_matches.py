@@ -110,7 +110,7 @@ def match_keyframes(
             matches.append(pair_matches)
             if progress is not None:
                 progress("matching", done, len(pairs))
-    _write_matches(database, camera, [image_ids[i] for i in range(len(names))], features, pairs, matches)
+    _write_matches(database, camera, image_ids, features, pairs, matches)
     report = MatchingReport(
         keyframes=len(names),
         keypoints_mean=float(np.mean([len(f.uv) for f in features])) if features else 0.0,
