@@ -1,5 +1,5 @@
-"""Keyframe matching gives the same database whatever the thread count, and only geometrically
-consistent matches."""
+"""Keyframe matching gives the same database and sparse points whatever the thread count, and only
+geometrically consistent matches."""
 
 import subprocess
 import sys
@@ -13,9 +13,10 @@ from rig.mesh_rays import mesh_raycaster
 from slam_bridge.colmap_matches import match_keyframes, read_correspondences
 from slam_bridge.guided_matching import tolerance_px
 from slam_bridge.scene import load_scene
+from slam_bridge.sparse_points import triangulate_keyframes
 
 
-def test_matching_with_one_and_two_threads_gives_the_same_matches(
+def test_matching_with_one_and_two_threads_gives_the_same_matches_and_points(
     quick_room: Path, gt_slam_dir: Path, tmp_path: Path
 ) -> None:
     lts = Path(sys.executable).parent / "lts"
@@ -50,6 +51,11 @@ def test_matching_with_one_and_two_threads_gives_the_same_matches(
     lines = np.cross(T_b_a[:, :3, 3], rays_a) @ K_inv  # in B's pixels
     distance = np.abs(np.sum(lines * homogeneous(first.uv_observer), axis=1))
     assert np.all(distance <= tolerance_px(scene.camera) * np.linalg.norm(lines[:, :2], axis=1) + 1e-6)
+    points = [
+        triangulate_keyframes(database, images, database.parent, scene.keyframes).points
+        for database, _ in runs[:2]
+    ]
+    np.testing.assert_array_equal(points[1], points[0])
     db = pycolmap.Database.open(runs[0][0])
     try:
         assert db.num_frames() == len(names)
