@@ -74,12 +74,12 @@ def test_an_ambiguous_descriptor_is_not_matched() -> None:
     assert len(guided_matches(a, copies, CAMERA)) == 0
 
 
-def test_wrong_poses_give_no_matches() -> None:
+def test_poses_wrong_beyond_the_tolerance_give_no_matches() -> None:
     points, descriptors = scene()
     a = features(points, descriptors, looking_along_z(np.zeros(3)), depth=True)
     b = features(points, descriptors, looking_along_z(np.array([0.5, 0.0, 0.0])), depth=True)
     wrong = KeyframeFeatures(
-        b.uv, b.descriptors, b.depth, looking_along_z(np.array([0.5, 0.0, 0.0]), yaw_deg=3.0)
+        b.uv, b.descriptors, b.depth, looking_along_z(np.array([0.5, 0.0, 0.0]), yaw_deg=6.0)
     )
     assert len(guided_matches(a, wrong, CAMERA)) == 0
 
