@@ -45,7 +45,8 @@ SMALL_IMAGE_PEAK_THRESHOLD = 0.0062
 #: Images extracted per COLMAP call (the progress bar moves after each).
 EXTRACTION_CHUNK = 8
 
-#: ``progress(step, done, total)``: ``step`` is ``"features"`` or ``"matching"``.
+#: ``progress(step, done, total)``: how far a named step has got (here ``"features"`` and
+#: ``"matching"``; the scene builder adds ``"keyframes"``).
 Progress = Callable[[str, int, int], None]
 
 
