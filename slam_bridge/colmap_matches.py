@@ -27,7 +27,7 @@ import numpy as np
 from rig.camera import CameraModel
 from rig.mesh_rays import cast_camera_rays
 from rig.transforms import invert
-from slam_bridge.guided_matching import KeyframeFeatures, essential_matrix, guided_matches
+from slam_bridge.guided_matching import TOLERANCE_DEG, KeyframeFeatures, essential_matrix, guided_matches
 from slam_bridge.keyframe_pairs import keyframe_pairs
 
 #: COLMAP pixel coordinate = OpenCV pixel coordinate + this.
@@ -88,6 +88,7 @@ def match_keyframes(
     raycaster: Any,
     progress: Progress | None = None,
     threads: int | None = None,
+    tolerance_deg: float = TOLERANCE_DEG,
 ) -> tuple[Path, MatchingReport]:
     """Extract SIFT features of ``images_dir/NAME`` for each of ``names`` (keyframes in time order,
     at ``poses`` ``(N, 4, 4)`` ``T_world_cam``), match the pairs that see the same surface of the
@@ -95,7 +96,8 @@ def match_keyframes(
     COLMAP database in ``workspace``; returns the database and a report.
 
     ``camera`` is the distortion-free pinhole camera of the images, shared by all of them;
-    ``threads``: how many to extract and match with (default: every core; the result is the same).
+    ``threads``: how many to extract and match with (default: every core; the result is the same);
+    ``tolerance_deg``: how far from the poses' geometry a match may lie.
     """
     quiet_colmap_log()
     threads = threads or os.cpu_count() or 1
@@ -110,7 +112,9 @@ def match_keyframes(
     pairs = keyframe_pairs(raycaster, camera, poses)
     paired = time.perf_counter()
     with ThreadPoolExecutor(max_workers=threads) as pool:
-        found = pool.map(lambda pair: guided_matches(features[pair[0]], features[pair[1]], camera), pairs)
+        found = pool.map(
+            lambda pair: guided_matches(features[pair[0]], features[pair[1]], camera, tolerance_deg), pairs
+        )
         matches = []
         for done, pair_matches in enumerate(found, start=1):
             matches.append(pair_matches)

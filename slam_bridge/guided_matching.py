@@ -31,12 +31,16 @@ DESCRIPTOR_NORM = 512.0
 MAX_RATIO = 0.8
 #: Largest angle (rad) between matched descriptors (COLMAP's default).
 MAX_DESCRIPTOR_ANGLE = 0.7
-#: Angular tolerance (degrees) of the geometric checks, for errors in the poses and calibration. The
-#: matches must also hold where the poses are wrong, for ``--refine-poses`` to correct them: on the
-#: virtual-rig room with poses off by 2.8 cm / 0.5 deg RMS (two noise draws), the refined keyframes
-#: ended 1.37 / 1.41 / 1.12 / 1.19 cm (median, mean of the draws) from the truth at 0.5 / 1 / 2 /
-#: 3 deg, 1.06 cm with the exhaustive matching.
-TOLERANCE_DEG = 2.0
+#: Angular tolerance (degrees) of the geometric checks, for errors in the poses and calibration,
+#: when the poses are final (matches for sparse points).
+TOLERANCE_DEG = 0.5
+#: ... and when the poses are to be refined (``--refine-poses``): the matches must also hold where
+#: the poses are wrong, for the refinement to correct them. On the virtual-rig room with poses off
+#: by 2.8 cm / 0.5 deg RMS (two noise draws), the refined keyframes ended 1.37 / 1.41 / 1.12 / 1.19
+#: cm (median, mean of the draws) from the truth at 0.5 / 1 / 2 / 3 deg, 1.06 cm with the
+#: exhaustive matching. For sparse points the wider band costs the TS+ baseline on the room
+#: F 0.525 instead of 0.570.
+REFINEMENT_TOLERANCE_DEG = 2.0
 #: ... but never less than this many pixels (keypoint localisation).
 MIN_TOLERANCE_PX = 4.0
 #: A keypoint with mesh depth d may match anywhere its depth in [d (1 - r), d (1 + r)] puts it.
@@ -60,10 +64,10 @@ class KeyframeFeatures:
     T_world_cam: np.ndarray
 
 
-def tolerance_px(camera: CameraModel) -> float:
-    """The pixel tolerance of the geometric checks for ``camera``: :data:`TOLERANCE_DEG` at its
-    focal length, at least :data:`MIN_TOLERANCE_PX`."""
-    return max(MIN_TOLERANCE_PX, camera.fx * np.tan(np.radians(TOLERANCE_DEG)))
+def tolerance_px(camera: CameraModel, tolerance_deg: float = TOLERANCE_DEG) -> float:
+    """The pixel tolerance of the geometric checks for ``camera``: ``tolerance_deg`` at its focal
+    length, at least :data:`MIN_TOLERANCE_PX`."""
+    return max(MIN_TOLERANCE_PX, camera.fx * np.tan(np.radians(tolerance_deg)))
 
 
 def essential_matrix(T_b_a: np.ndarray) -> np.ndarray:
@@ -97,8 +101,8 @@ class _Prediction:
     radius: np.ndarray
 
 
-def _predict(a: KeyframeFeatures, b: KeyframeFeatures, camera: CameraModel) -> _Prediction:
-    K, K_inv, tolerance = camera.K, np.linalg.inv(camera.K), tolerance_px(camera)
+def _predict(a: KeyframeFeatures, b: KeyframeFeatures, camera: CameraModel, tolerance: float) -> _Prediction:
+    K, K_inv = camera.K, np.linalg.inv(camera.K)
     T_b_a = invert(b.T_world_cam) @ a.T_world_cam
     R, t = T_b_a[:3, :3], T_b_a[:3, 3]
     homogeneous = np.concatenate([a.uv, np.ones((len(a.uv), 1))], axis=1)
@@ -143,13 +147,17 @@ def _angle(dot_products: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(dot_products / DESCRIPTOR_NORM**2, -1.0, 1.0))
 
 
-def guided_matches(a: KeyframeFeatures, b: KeyframeFeatures, camera: CameraModel) -> np.ndarray:
+def guided_matches(
+    a: KeyframeFeatures, b: KeyframeFeatures, camera: CameraModel, tolerance_deg: float = TOLERANCE_DEG
+) -> np.ndarray:
     """Matches ``(M, 2)`` int64 (index in A, index in B) between two keyframes of the
-    distortion-free ``camera``; empty when fewer than :data:`MIN_MATCHES`."""
+    distortion-free ``camera``, the geometry checked to ``tolerance_deg``; empty when fewer than
+    :data:`MIN_MATCHES`."""
     none = np.zeros((0, 2), dtype=np.int64)
     if len(a.uv) < 2 or len(b.uv) < 2:
         return none
-    prediction, tolerance = _predict(a, b, camera), tolerance_px(camera)
+    tolerance = tolerance_px(camera, tolerance_deg)
+    prediction = _predict(a, b, camera, tolerance)
     nearest = np.zeros(len(a.uv), dtype=np.int64)
     best = np.full(len(a.uv), -np.inf, dtype=np.float32)  # dot products: larger is nearer
     second = np.full(len(a.uv), -np.inf, dtype=np.float32)

@@ -26,6 +26,7 @@ from rig.mesh_rays import mesh_raycaster
 from rig.messages import Frame
 from rig.session import Recording, as_recording, find_topics
 from slam_bridge.colmap_matches import MatchingReport, Progress, match_keyframes, read_correspondences
+from slam_bridge.guided_matching import REFINEMENT_TOLERANCE_DEG, TOLERANCE_DEG
 from slam_bridge.keyframe_lidar import keyframe_lidar, write_keyframe_lidar
 from slam_bridge.keyframe_normals import write_keyframe_normals
 from slam_bridge.keyframe_selection import (
@@ -47,8 +48,9 @@ DEFAULT_CONFIG = PrepareConfig()
 @dataclass(frozen=True)
 class SceneBuild:
     """What :func:`build_scene` wrote: the keyframes and, with ``refine_poses``, the refinement's
-    report; with ``sparse_points`` or ``refine_poses``, matching's; with ``sparse_points``, the
-    seconds triangulation took."""
+    report; with ``sparse_points`` or ``refine_poses``, matching's (with both, that of the matching
+    at the final poses the sparse points come from); with ``sparse_points``, the seconds
+    triangulation took."""
 
     keyframes: list[Keyframe]
     refinement: RefinementReport | None
@@ -102,12 +104,12 @@ def build_scene(
     frames = reader.frames_at(topics.image, chosen)
     write_keyframe_images(out, frames, keyframes, calibration.camera, target, reader.path, done)
     raycaster = mesh_raycaster(mesh)
-    database, matching = None, None
-    if config.sparse_points or config.refine_poses:
-        database, matching = _matches(out, target, keyframes, raycaster, progress)
-    refinement = None
+    database, matching, refinement = None, None, None
     if config.refine_poses:
+        database, matching = _matches(out, target, keyframes, raycaster, progress, REFINEMENT_TOLERANCE_DEG)
         keyframes, refinement = _refined(database, target, keyframes, raycaster)
+    if config.sparse_points:  # matched (again) at the final poses, to the tolerance of right poses
+        database, matching = _matches(out, target, keyframes, raycaster, progress, TOLERANCE_DEG)
     points = keyframe_lidar(
         reader.scans(topics.points), trajectory, calibration, keyframes, target, config.keyframe_interval_s
     )
@@ -171,12 +173,20 @@ def write_keyframe_images(
 
 
 def _matches(
-    out: Path, camera: CameraModel, keyframes: list[Keyframe], raycaster, progress: Progress | None
+    out: Path,
+    camera: CameraModel,
+    keyframes: list[Keyframe],
+    raycaster,
+    progress: Progress | None,
+    tolerance_deg: float,
 ) -> tuple[Path, MatchingReport]:
-    """COLMAP's database of matches between the keyframe images (in ``out/colmap``), and its report."""
+    """COLMAP's database of matches between the keyframe images (in ``out/colmap``) to
+    ``tolerance_deg`` of their poses, and its report."""
     names = [f"{k.name}.png" for k in keyframes]
     poses = np.stack([k.T_world_cam for k in keyframes])
-    return match_keyframes(out / "images", out / "colmap", camera, names, poses, raycaster, progress)
+    return match_keyframes(
+        out / "images", out / "colmap", camera, names, poses, raycaster, progress, tolerance_deg=tolerance_deg
+    )
 
 
 def _refined(
