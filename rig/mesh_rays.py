@@ -1,5 +1,5 @@
 """Rays cast at a triangle mesh (open3d ``RaycastingScene``): one way to build the scene, a
-camera's pixel rays, and camera rays cast from a pose. open3d is imported on first use."""
+camera's pixel rays, rays cast from a pose and the mesh points pixels see. open3d is imported on first use."""
 
 from __future__ import annotations
 
@@ -24,12 +24,26 @@ def mesh_raycaster(mesh: trimesh.Trimesh) -> Any:
     return raycaster
 
 
-def pixel_rays(camera: CameraModel) -> np.ndarray:
-    """Unit camera-frame rays ``(H * W, 3)`` through every pixel centre, row by row (NaN where the
-    camera model cannot back-project the pixel)."""
-    u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
-    rays = camera.unproject(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
+def pixel_rays(camera: CameraModel, pixels: np.ndarray | None = None) -> np.ndarray:
+    """Unit camera-frame rays ``(N, 3)`` through ``pixels`` ``(N, 2)``, by default every pixel
+    centre row by row (``N = H * W``); NaN where the camera model cannot back-project the pixel."""
+    if pixels is None:
+        u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
+        pixels = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64)
+    rays = camera.unproject(pixels)
     return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+
+
+def mesh_points(
+    raycaster: Any, camera: CameraModel, T_world_cam: np.ndarray, pixels: np.ndarray
+) -> np.ndarray:
+    """World points ``(N, 3)`` where the rays of ``pixels`` ``(N, 2)`` of a camera at ``T_world_cam``
+    meet the mesh (NaN where they miss)."""
+    rays = pixel_rays(camera, pixels)
+    t_hit = cast_camera_rays(raycaster, T_world_cam, rays)["t_hit"]
+    points = T_world_cam[:3, 3] + (rays @ T_world_cam[:3, :3].T) * t_hit[:, None]
+    points[~np.isfinite(t_hit)] = np.nan
+    return points
 
 
 def cast_camera_rays(raycaster: Any, T_world_cam: np.ndarray, rays_cam: np.ndarray) -> dict[str, np.ndarray]:

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from rig.camera import CameraModel
-from rig.mesh_rays import cast_camera_rays
+from rig.mesh_rays import cast_camera_rays, pixel_rays
 from rig.transforms import invert
 from slam_bridge.guided_matching import TOLERANCE_DEG, KeyframeFeatures, essential_matrix, guided_matches
 from slam_bridge.keyframe_pairs import keyframe_pairs
@@ -225,8 +225,7 @@ def _read_features(
         db.close()
     features = []
     for (uv, descriptors), pose in zip(read, poses, strict=True):
-        rays = camera.unproject(uv)
-        rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+        rays = pixel_rays(camera, uv)
         distance = cast_camera_rays(raycaster, pose, rays)["t_hit"] if len(uv) else np.zeros(0)
         depth = np.where(np.isfinite(distance), distance * rays[:, 2], np.nan)
         features.append(KeyframeFeatures(uv, descriptors, depth, pose))

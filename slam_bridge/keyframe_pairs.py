@@ -13,8 +13,7 @@ from typing import Any
 import numpy as np
 
 from rig.camera import CameraModel
-from rig.mesh_rays import cast_camera_rays, cast_world_rays
-from rig.transforms import transform_points
+from rig.mesh_rays import cast_world_rays, mesh_points
 
 #: Rays cast per keyframe, on an even pixel grid, to find the surface it sees.
 SAMPLES_PER_KEYFRAME = 400
@@ -36,11 +35,8 @@ def surface_samples(raycaster: Any, camera: CameraModel, T_world_cam: np.ndarray
     :data:`SAMPLES_PER_KEYFRAME` pixels hit the mesh (rays that miss are left out)."""
     step = max(1.0, np.sqrt(camera.width * camera.height / SAMPLES_PER_KEYFRAME))
     u, v = np.meshgrid(np.arange(step / 2, camera.width, step), np.arange(step / 2, camera.height, step))
-    rays = camera.unproject(np.stack([u.ravel(), v.ravel()], axis=1))
-    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-    distance = cast_camera_rays(raycaster, T_world_cam, rays)["t_hit"]
-    hit = np.isfinite(distance)
-    return transform_points(T_world_cam, rays[hit] * distance[hit, None])
+    points = mesh_points(raycaster, camera, T_world_cam, np.stack([u.ravel(), v.ravel()], axis=1))
+    return points[np.isfinite(points[:, 0])]
 
 
 def seen_fractions(

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from rig.camera import CameraModel
-from rig.mesh_rays import cast_camera_rays
+from rig.mesh_rays import mesh_points
 from rig.transforms import distance_and_angle, invert, make_transform, transform_points
 from slam_bridge.colmap_matches import COLMAP_PIXEL_OFFSET, Correspondences, colmap_camera_params
 
@@ -80,16 +80,6 @@ class RefinementReport:
     max_turn_deg: float
     median_turn_deg: float
     refused: str | None = None
-
-
-def cast_anchors(raycaster: Any, camera: CameraModel, T_world_cam: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """World points ``(N, 3)`` where the rays of pixels ``uv`` ``(N, 2)`` meet the mesh (NaN: miss)."""
-    rays = camera.unproject(uv)
-    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-    t_hit = cast_camera_rays(raycaster, T_world_cam, rays)["t_hit"]
-    points = T_world_cam[:3, 3] + (rays @ T_world_cam[:3, :3].T) * t_hit[:, None]
-    points[~np.isfinite(t_hit)] = np.nan
-    return points
 
 
 def reprojection_errors(
@@ -165,7 +155,7 @@ class _Anchored:
     def recast(self, keyframe: int, T_world_cam: np.ndarray) -> None:
         rows = self.source == keyframe
         if rows.any():
-            self.points[rows] = cast_anchors(self.raycaster, self.camera, T_world_cam, self.uv_source[rows])
+            self.points[rows] = mesh_points(self.raycaster, self.camera, T_world_cam, self.uv_source[rows])
 
     def recast_all(self, poses: np.ndarray) -> None:
         for k, T in enumerate(poses):

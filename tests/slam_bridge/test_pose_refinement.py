@@ -8,9 +8,9 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from rig import CameraModel, invert, make_transform, transform_points
-from rig.mesh_rays import mesh_raycaster
+from rig.mesh_rays import mesh_points, mesh_raycaster
 from slam_bridge.colmap_matches import Correspondences
-from slam_bridge.pose_refinement import cast_anchors, refine_keyframe_poses, restore_slow_errors
+from slam_bridge.pose_refinement import refine_keyframe_poses, restore_slow_errors
 
 CAMERA = CameraModel("pinhole", 320, 240, [[250.0, 0, 159.5], [0, 250.0, 119.5], [0, 0, 1]], [])
 
@@ -52,7 +52,7 @@ def synthetic_matches(mesh: trimesh.Trimesh, poses: np.ndarray, pixel_noise: flo
     for T in poses:
         uv = CAMERA.project(transform_points(invert(T), points))
         inside = np.isfinite(uv).all(axis=1) & CAMERA.in_image(np.nan_to_num(uv, nan=-1.0), margin=2)
-        hit = cast_anchors(raycaster, CAMERA, T, np.where(inside[:, None], uv, 0.0))
+        hit = mesh_points(raycaster, CAMERA, T, np.where(inside[:, None], uv, 0.0))
         visible = inside & (np.linalg.norm(hit - points, axis=1) < 1e-3)  # not hidden by the box
         seen.append((visible, uv + rng.normal(0, pixel_noise, uv.shape)))
     parts: dict[str, list[np.ndarray]] = {k: [] for k in ("observer", "source", "uv_o", "uv_s", "match")}
