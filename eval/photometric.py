@@ -57,12 +57,25 @@ def _check_pair(a: torch.Tensor, b: torch.Tensor) -> None:
             raise InputError("image holds NaN or Inf", field=name)
 
 
-def psnr(rendered: np.ndarray | torch.Tensor, target: np.ndarray | torch.Tensor) -> float:
+def psnr(
+    rendered: np.ndarray | torch.Tensor,
+    target: np.ndarray | torch.Tensor,
+    mask: np.ndarray | torch.Tensor | None = None,
+) -> float:
     """Peak signal-to-noise ratio in dB for data range 1 (``math.inf`` for identical images,
-    never NaN: empty or non-finite images raise :class:`~rig.errors.InputError`)."""
+    never NaN: empty or non-finite images raise :class:`~rig.errors.InputError`); with ``mask``
+    ``(H, W)`` bool, over the pixels where it is True only (none: an InputError)."""
     a, b = as_image_tensor(rendered), as_image_tensor(target)
     _check_pair(a, b)
     diff = a - b
+    if mask is not None:
+        keep = torch.as_tensor(mask, dtype=torch.bool, device=diff.device)
+        if keep.shape != diff.shape[-2:]:
+            raise InputError(f"mask of shape {tuple(keep.shape)} for images of {tuple(diff.shape[-2:])}",
+                             field="mask")  # fmt: skip
+        if not bool(keep.any()):
+            raise InputError("the mask selects no pixel", field="mask")
+        diff = diff[..., keep]
     peak = float(diff.abs().max())
     if peak == 0.0:
         return math.inf

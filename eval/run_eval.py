@@ -41,6 +41,7 @@ from eval.leaned_views import hit_mask, leaned_poses
 from eval.lidar_agreement import lidar_agreement
 from eval.lpips_net import LpipsAlex
 from eval.lpips_weights import HOW_TO_GET, load_lpips
+from eval.moving_pixels import mover_names, moving_pixel_masks
 from eval.photometric import lpips, psnr, ssim
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
@@ -198,13 +199,24 @@ def _photometric(
     lpips_network: LpipsAlex | None,
     metrics: dict,
     reasons: dict,
+    moving: list[np.ndarray] | None = None,
 ) -> list[ViewImages]:
+    """PSNR, SSIM, LPIPS and depth errors of the test views into ``metrics``; also PSNR over the
+    pixels above the LiDAR's reach and, with ``moving`` (one ``(H, W)`` mask per test view of the
+    pixels that show a moving object), over the static pixels."""
     views, psnrs, ssims, lpips_values, depth_errors = [], [], [], [], []
-    for keyframe in tests:
+    above_psnrs, static_psnrs, moving_fractions = [], [], []
+    for i, keyframe in enumerate(tests):
         lidar = scene.depth(keyframe)
         out = _render(model, scene, keyframe.T_world_cam, lidar)
         render = _as_rgb(out.rgb)
         target = scene.image(keyframe).astype(np.float32) / 255.0
+        above = scored_background_mask(torch.as_tensor(lidar))
+        if above is not None and bool(above.any()):
+            above_psnrs.append(psnr(render, target, mask=above))
+        if moving is not None:
+            moving_fractions.append(float(moving[i].mean()))
+            static_psnrs.append(psnr(render, target, mask=~moving[i]))
         views.append(
             ViewImages(
                 keyframe.name, render, target, out.alpha.detach().cpu().numpy(), psnr(render, target),
@@ -221,6 +233,13 @@ def _photometric(
         depth_errors.append(np.abs(depth - lidar[valid]))
     metrics["psnr"] = float(np.mean(psnrs))
     metrics["ssim"] = float(np.mean(ssims))
+    metrics["psnr_above_lidar"] = float(np.mean(above_psnrs)) if above_psnrs else None
+    if not above_psnrs:
+        reasons["psnr_above_lidar"] = "no test view has pixels above its LiDAR returns"
+    metrics["psnr_static"] = float(np.mean(static_psnrs)) if moving is not None else None
+    metrics["moving_pixel_fraction"] = float(np.mean(moving_fractions)) if moving is not None else None
+    if moving is None:
+        reasons["psnr_static"] = "needs --gt with moving objects (a virtual-rig folder with movers/)"
     metrics["lpips"] = float(np.mean(lpips_values)) if lpips_values else None
     if lpips_network is None:
         reasons["lpips"] = HOW_TO_GET
@@ -231,6 +250,16 @@ def _photometric(
     if not errors.size:
         reasons["depth_error_median_m"] = "no test pixel has both a LiDAR return and alpha > 0.5"
     return views
+
+
+def _rig_movers_dir(gt: Path) -> Path | None:
+    """The virtual-rig ground-truth folder of ``gt`` when it has moving objects, else None."""
+    from eval.ground_truth import ground_truth_dir, is_rig_ground_truth_mesh
+
+    if gt.is_file() and not is_rig_ground_truth_mesh(gt):
+        return None
+    folder = ground_truth_dir(gt.parent if gt.is_file() else gt)
+    return folder if mover_names(folder) else None
 
 
 def _holes(
@@ -389,8 +418,12 @@ def evaluate_run(
 
         truth = load_ground_truth(scene, gt)
 
+    moving = None
+    if gt is not None and (movers := _rig_movers_dir(Path(gt))) is not None:
+        log(f"finding the pixels of the moving objects in {len(tests)} test views")
+        moving = moving_pixel_masks(movers, scene.camera, np.array([k.t_ns for k in tests]))
     log(f"rendering {len(tests)} test views")
-    views = _photometric(model, scene, tests, lpips_network, metrics, reasons)
+    views = _photometric(model, scene, tests, lpips_network, metrics, reasons, moving)
 
     metrics.update(dict.fromkeys(GT_FIELDS))
     if truth is not None:

@@ -57,6 +57,21 @@ def test_shape_mismatch_is_an_error() -> None:
         psnr(torch.zeros(3, 8, 8), torch.zeros(3, 8, 9))
 
 
+def test_psnr_over_a_mask_counts_only_its_pixels() -> None:
+    rendered = torch.zeros(3, 8, 8, dtype=torch.float64)
+    target = rendered.clone()
+    target[:, :4] = 0.1  # error only in the top half
+    top = torch.zeros(8, 8, dtype=torch.bool)
+    top[:4] = True
+    assert psnr(rendered, target, mask=top) == pytest.approx(20.0)
+    assert psnr(rendered, target) == pytest.approx(20.0 + 10 * np.log10(2))
+    assert psnr(rendered, target, mask=~top) == float("inf")
+    with pytest.raises(ValueError, match="no pixel"):
+        psnr(rendered, target, mask=torch.zeros(8, 8, dtype=torch.bool))
+    with pytest.raises(ValueError, match="mask of shape"):
+        psnr(rendered, target, mask=top[:4])
+
+
 def test_lpips_is_null_with_a_reason_when_unavailable() -> None:
     result = lpips(torch.rand(3, 32, 32), torch.rand(3, 32, 32))
     if result.value is None:

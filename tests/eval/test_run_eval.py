@@ -75,6 +75,8 @@ def test_every_contract_field_and_sensible_numbers_against_the_ground_truth(tiny
     assert metrics["hole_reference"] == "ground_truth"
     assert 0 <= metrics["hole_fraction_leaned"] < 0.1
     assert (metrics["lpips"] is None) == ("lpips" in metrics["reasons"])
+    assert (metrics["psnr_above_lidar"] is None) == ("psnr_above_lidar" in metrics["reasons"])
+    assert metrics["psnr_static"] is None and "movers/" in metrics["reasons"]["psnr_static"]
     assert len(with_gt.views) == 1 and len(with_gt.leaned) == 4
     if metrics["physics_probes"] is None:
         assert "physics" in metrics["reasons"]
