@@ -216,13 +216,14 @@ def map_session(session: Recording, out: Path, log: Callable[[str], None]) -> No
 
 
 def prepare_config(o: ReconstructOptions) -> PrepareConfig:
-    """The keyframe options of ``o`` (the TS+ baseline also needs SfM points)."""
+    """The keyframe options of ``o``, with SfM points when the method's initialisation reads them
+    (the TS+ baseline starts from them; ours seeds camera-only triangles at them)."""
     from slam_bridge.prepare_config import PrepareConfig
 
+    init = train_config(o)
     interval = {} if o.keyframe_interval_s is None else {"keyframe_interval_s": o.keyframe_interval_s}
-    return PrepareConfig(
-        sparse_points=o.method == "tsplus", max_size=o.max_size, downscale=o.downscale, **interval
-    )
+    sparse = init.init == "delaunay-sfm" or (init.init == "mesh" and init.camera_only_seeds)
+    return PrepareConfig(sparse_points=sparse, max_size=o.max_size, downscale=o.downscale, **interval)
 
 
 def prepare_key(config: PrepareConfig) -> list[str]:

@@ -45,6 +45,11 @@ class TrainConfig(BaseModel):
     complete_hidden_floor: bool = Field(
         True, description="with ground_fill: also the floor no camera sees where the room encloses it"
     )
+    camera_only_seeds: bool = Field(
+        True,
+        description="one triangle at each of the scene's sparse points no LiDAR return explains (what "
+        "the camera sees beyond the LiDAR's field or range; splat.camera_only); needs sparse points",
+    )
     lidar_init_points: int = Field(2_000, ge=4, description="as many as the SfM points TS+ starts from")
 
     # Loss weights (Eq. 3): (1-λ) L1 + λ D-SSIM + β1 opacity + β2 normal + β3 depth + β4 distortion.

@@ -14,6 +14,7 @@ from torch import Tensor
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import Keyframe, Scene
 from splat.background import constant_background
+from splat.camera_only import camera_only_seeds
 from splat.config import TrainConfig
 from splat.init_mesh import decouple_and_scale, ground_fill, simplify
 from splat.lidar_points import lidar_points
@@ -59,9 +60,9 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         notes.append(snap.reason)
     mesh = trimesh.Trimesh(vertices, mesh.faces, process=False)
     triangles = decouple_and_scale(mesh.vertices, np.asarray(mesh.faces), config.init_scale)
+    lidar = lidar_points(scene, train)
     if config.ground_fill:
         poses = np.stack([k.T_world_cam for k in train])
-        lidar = lidar_points(scene, train)
         complete = config.complete_hidden_floor
         fill = ground_fill(mesh, scene.camera, poses, lidar, config.ground_cell_m, complete_hidden=complete)
         notes.append(fill.reason)
@@ -69,6 +70,15 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         # train, so they keep their size (scaled, they would reach past the walls).
         triangles = np.concatenate([triangles, _scaled(fill.triangles, config.init_scale), fill.hidden])
     colors = None if config.init_color == "project" else np.full_like(triangles, GREY)
+    if config.camera_only_seeds and scene.sparse_points_path is None:
+        notes.append("no camera-only triangles: the scene has no sparse points (lts prepare --sparse-points)")
+    elif config.camera_only_seeds:
+        points, point_colors = scene.sparse_points()
+        centres = np.stack([k.T_world_cam[:3, 3] for k in train])
+        seeds = camera_only_seeds(points, point_colors, lidar, centres)
+        notes.append(seeds.reason)
+        triangles = np.concatenate([triangles, seeds.triangles])
+        colors = None if colors is None else np.concatenate([colors, seeds.colors])
     return Initialisation(triangles, colors, notes)
 
 
