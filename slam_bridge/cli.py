@@ -94,7 +94,12 @@ def run_command(
     voxel: float | None = typer.Option(
         None, "--voxel", help="KISS-ICP voxel size in m (default: from the data)."
     ),
-    tsdf_voxel: float = typer.Option(0.04, "--tsdf-voxel", help="TSDF voxel size in m (mesh resolution)."),
+    tsdf_voxel: float | None = typer.Option(
+        None,
+        "--tsdf-voxel",
+        help="TSDF voxel size in m (mesh resolution); default: 1/150 of the first sweep's 95th-percentile "
+        "range, at least 0.04 m (0.04 m in rooms, 0.15 m on a street seen by a 64-beam LiDAR).",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Fallback mapper on a recording's LiDAR sweeps (per-point times): KISS-ICP LiDAR odometry
