@@ -1,10 +1,12 @@
 """Each keyframe's LiDAR points: the scans between its neighbouring keyframes, deskewed by the
 trajectory, without the points of moving objects, moved into its camera frame and kept where they
-project into the image."""
+project into the image; and, apart, the points of moving objects that the sweeps taken with its
+image hold (training masks their pixels out of the photometric loss)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -17,10 +19,22 @@ from rig.trajectory import Trajectory
 from rig.transforms import invert, transform_points
 from slam_bridge.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 from slam_bridge.keyframe_selection import lidar_clock
-from slam_bridge.scene import LIDAR_DIR, Keyframe
+from slam_bridge.scene import LIDAR_DIR, MOVING_DIR, Keyframe
 
 #: Points nearer than this along the camera's z are never depth (as in the z-buffer).
 NEAR_M = 0.05
+#: A keyframe's moving points come from the sweeps stamped within this of its image (half a sweep
+#: of a 10 Hz LiDAR): a vehicle has not moved far from where the image shows it.
+MOVING_WINDOW_S = 0.05
+
+
+@dataclass(frozen=True)
+class KeyframePoints:
+    """Per keyframe (in time order), camera-frame points ``(N, 3)`` float32 in its image: the static
+    ones of every scan in its window, and the moving ones of the sweeps taken with its image."""
+
+    static: list[np.ndarray]
+    moving: list[np.ndarray]
 
 
 def keyframe_windows(t_ns: np.ndarray, interval_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -47,16 +61,20 @@ def keyframe_lidar(
     camera: CameraModel,
     interval_s: float,
     dynamic: DynamicConfig | None = DEFAULT_DYNAMIC,
-) -> list[np.ndarray]:
-    """Per keyframe (in time order), the points ``(N, 3)`` float32 in its camera frame of the scans
-    stamped within its :func:`keyframe_windows` (on the camera clock), deskewed with the LiDAR
-    ``trajectory`` (host clock) and seen by ``camera``, without the points of moving objects
-    (:func:`~slam_bridge.dynamic_points.label_dynamic` with ``dynamic``; None keeps them). Scans
-    are streamed; each is deskewed once."""
-    lo, hi = keyframe_windows(np.array([k.t_ns for k in keyframes]), interval_s)
+) -> KeyframePoints:
+    """Per keyframe (in time order), the points in its camera frame of the scans stamped within its
+    :func:`keyframe_windows` (on the camera clock), deskewed with the LiDAR ``trajectory`` (host
+    clock) and seen by ``camera``, without the points of moving objects
+    (:func:`~slam_bridge.dynamic_points.label_dynamic` with ``dynamic``; None keeps them); those
+    are kept apart for the sweeps within :data:`MOVING_WINDOW_S` of the keyframe. Scans are
+    streamed; each is deskewed once."""
+    stamps_ns = np.array([k.t_ns for k in keyframes])
+    lo, hi = keyframe_windows(stamps_ns, interval_s)
     lo, hi = lidar_clock(lo, calibration), lidar_clock(hi, calibration)
+    image_t = lidar_clock(stamps_ns, calibration)
     T_cam_world = invert(np.stack([k.T_world_cam for k in keyframes]))
     chunks: list[list[np.ndarray]] = [[] for _ in keyframes]
+    moving_chunks: list[list[np.ndarray]] = [[] for _ in keyframes]
     stamps: list[int] = []  # each sweep's host stamp, by index
 
     def sweeps() -> Iterator[tuple[float, np.ndarray, np.ndarray]]:
@@ -73,15 +91,26 @@ def keyframe_lidar(
         t_host = stamps[index]
         first, stop = np.searchsorted(hi, t_host), np.searchsorted(lo, t_host, side="right")
         for n in range(first, stop):
-            chunks[n].append(in_view(transform_points(T_cam_world[n], view.points_world[~moving]), camera))
-    return [np.concatenate(c) if c else np.zeros((0, 3), np.float32) for c in chunks]
+            in_camera = transform_points(T_cam_world[n], view.points_world)
+            chunks[n].append(in_view(in_camera[~moving], camera))
+            if moving.any() and abs(t_host - image_t[n]) <= MOVING_WINDOW_S * 1e9:
+                moving_chunks[n].append(in_view(in_camera[moving], camera))
+
+    def joined(parts: list[list[np.ndarray]]) -> list[np.ndarray]:
+        return [np.concatenate(c) if c else np.zeros((0, 3), np.float32) for c in parts]
+
+    return KeyframePoints(joined(chunks), joined(moving_chunks))
 
 
 def write_keyframe_lidar(
-    out: Path, keyframes: list[Keyframe], points: list[np.ndarray], done: Callable[[], None]
+    out: Path, keyframes: list[Keyframe], points: KeyframePoints, done: Callable[[], None]
 ) -> None:
-    """Save each keyframe's points ``(N, 3)`` float32 as ``out/lidar/NAME.npy``; ``done()`` after each."""
+    """Save each keyframe's static points ``(N, 3)`` float32 as ``out/lidar/NAME.npy`` and its moving
+    ones, where it has any, as ``out/moving/NAME.npy``; ``done()`` after each keyframe."""
     (out / LIDAR_DIR).mkdir(parents=True, exist_ok=True)
-    for keyframe, cloud in zip(keyframes, points, strict=True):
-        np.save(out / LIDAR_DIR / f"{keyframe.name}.npy", cloud)
+    for keyframe, static, moving in zip(keyframes, points.static, points.moving, strict=True):
+        np.save(out / LIDAR_DIR / f"{keyframe.name}.npy", static)
+        if len(moving):
+            (out / MOVING_DIR).mkdir(exist_ok=True)
+            np.save(out / MOVING_DIR / f"{keyframe.name}.npy", moving)
         done()

@@ -8,6 +8,8 @@ Layout of ``SCENE_DIR``::
     lidar/NAME.npy      LiDAR points (N, 3) float32 in the camera frame, deskewed, those that
                         project into the image (the scans between the neighbouring keyframes)
     normals/NAME.npy    normal prior (H, W, 3) float32, camera frame, facing the camera, 0 = none
+    moving/NAME.npy     points of moving objects (N, 3) float32 in the camera frame, from the
+                        sweeps taken with the image (only keyframes that have some)
     mesh.ply            warm-start mesh (world frame), copied from the SLAM folder
     sparse_points.ply   COLMAP points triangulated from the keyframes (optional, ``--sparse-points``)
 
@@ -37,6 +39,10 @@ from slam_bridge.prepare_config import PrepareConfig
 SCENE_FILE = "scene.json"
 SPARSE_POINTS_FILE = "sparse_points.ply"
 LIDAR_DIR = "lidar"
+MOVING_DIR = "moving"
+#: A moving point masks the pixels within this fraction of the image width around it, which joins
+#: the beams' hits on a vehicle into one region.
+MOVING_MASK_RADIUS_FRACTION = 0.01
 #: Version of the folder layout; 1 kept depth images instead of LiDAR points and no options.
 FORMAT_VERSION = 2
 Split = Literal["train", "test"]
@@ -118,6 +124,21 @@ class Scene:
     def depth(self, keyframe: Keyframe) -> np.ndarray:
         """``(H, W)`` float32 LiDAR depth in metres, 0 where there is no return."""
         return self.lidar(keyframe).depth()
+
+    def moving_mask(self, keyframe: Keyframe) -> np.ndarray | None:
+        """``(H, W)`` bool: the pixels near a moving object's point (``moving/NAME.npy``, within
+        :data:`MOVING_MASK_RADIUS_FRACTION` of the width), or None when the keyframe has none."""
+        path = self.root / MOVING_DIR / f"{keyframe.name}.npy"
+        if not path.is_file():
+            return None
+        points = _load_array(path, (None, 3))
+        mask = np.zeros((self.camera.height, self.camera.width), dtype=np.uint8)
+        pixels = np.round(self.camera.project(points)).astype(np.int64)
+        inside = self.camera.in_image(pixels)
+        mask[pixels[inside, 1], pixels[inside, 0]] = 1
+        radius = max(1, round(MOVING_MASK_RADIUS_FRACTION * self.camera.width))
+        disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+        return cv2.dilate(mask, disk).astype(bool)
 
     def normals(self, keyframe: Keyframe) -> np.ndarray:
         """``(H, W, 3)`` float32 camera-frame normal prior, zeros where there is none."""

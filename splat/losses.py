@@ -32,12 +32,14 @@ class LossTerms:
         return {name: float(value.detach()) for name, value in self.__dict__.items()}
 
 
-def dssim(rendered: Tensor, target: Tensor) -> Tensor:
-    """``1 - SSIM`` (mean over pixels) of two ``(H, W, 3)`` images in [0, 1]; the standard 11×11
-    Gaussian window (σ = 1.5), kornia's implementation."""
+def dssim(rendered: Tensor, target: Tensor, keep: Tensor | None = None) -> Tensor:
+    """``1 - SSIM`` (mean over pixels, those where ``keep`` ``(H, W)`` bool is True when given) of
+    two ``(H, W, 3)`` images in [0, 1]; the standard 11×11 Gaussian window (σ = 1.5), kornia's
+    implementation."""
     a = rendered.permute(2, 0, 1)[None]
     b = target.permute(2, 0, 1)[None]
-    return 1.0 - kornia.metrics.ssim(a, b, window_size=11).mean()
+    ssim_map = kornia.metrics.ssim(a, b, window_size=11)[0].permute(1, 2, 0)  # (H, W, 3)
+    return 1.0 - (ssim_map.mean() if keep is None else ssim_map[keep].mean())
 
 
 def accumulated_depth_l1(out: RenderOutput, lidar_depth: Tensor) -> Tensor:
@@ -68,6 +70,7 @@ def training_loss(
     normal_prior: Tensor | None,
     opacity: Tensor,
     config: TrainConfig,
+    moving_mask: Tensor | None = None,
 ) -> LossTerms:
     """All loss terms of one view.
 
@@ -79,10 +82,13 @@ def training_loss(
         opacity: ``(F,)`` activated triangle opacities; the regulariser averages those of the
             triangles this view sees (Adam would turn even a tiny constant gradient into full-size
             steps and fade out every triangle no view sees — geometry only the LiDAR saw).
+        moving_mask: ``(H, W)`` bool, pixels of moving objects left out of L1 and D-SSIM, or None.
     """
     zero = image.new_zeros(())
-    l1 = (out.rgb - image).abs().mean()
-    ds = dssim(out.rgb, image) if config.lambda_dssim > 0 else zero
+    keep = None if moving_mask is None or not bool(moving_mask.any()) else ~moving_mask
+    error = (out.rgb - image).abs()
+    l1 = error.mean() if keep is None else error[keep].mean()
+    ds = dssim(out.rgb, image, keep) if config.lambda_dssim > 0 else zero
     depth = accumulated_depth_l1(out, lidar_depth) if lidar_depth is not None and config.w_depth > 0 else zero
     normal = normal_loss(out, normal_prior) if normal_prior is not None and config.w_normal > 0 else zero
     in_view = out.max_weight > 0

@@ -157,6 +157,13 @@ class Trainer:
             train_masked = self.config.background_where == "above-lidar"
             for view in self.test_views + (self.train_views if train_masked else []):
                 view.background_mask = scored_background_mask(view.depth)
+        masked = [float(v.moving_mask.float().mean()) for v in self.train_views if v.moving_mask is not None]
+        if masked:
+            fraction = sum(masked) / len(self.train_views)
+            self.state.skips.append(
+                f"moving objects masked out of the photometric loss: {fraction:.1%} of the training pixels "
+                f"({len(masked)} of {len(self.train_views)} views)"
+            )
         if self.config.w_normal > 0 and all(v.normal is None for v in self.train_views):
             self.state.skips.append("no normal prior in any training view: normal loss skipped")
         if self.config.w_depth > 0 and all(v.depth is None for v in self.train_views):
@@ -249,7 +256,9 @@ class Trainer:
         view = self._training_view(it)
         out = self.model.render(self.scene.camera, view.T_cam_world, background_mask=view.background_mask)
         opacity = self.model.triangle_opacity()
-        terms = training_loss(out, view.image, view.depth, view.normal, opacity, self.config)
+        terms = training_loss(
+            out, view.image, view.depth, view.normal, opacity, self.config, moving_mask=view.moving_mask
+        )
         terms.total.backward()
         accepted = self._optimizer_step(terms.total, it)
         report = self.strategy.after_step(self.model, self.optimizer, it, out if accepted else None, view)

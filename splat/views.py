@@ -24,6 +24,8 @@ class View:
         normal: ``(H, W, 3)`` normal prior (0 = none), or None when the keyframe has none.
         background_mask: ``(H, W)`` bool, where training composites the background; None:
             wherever the triangles leave alpha below one.
+        moving_mask: ``(H, W)`` bool, pixels of moving objects the photometric loss leaves out,
+            or None when the keyframe saw none (:meth:`~slam_bridge.scene.Scene.moving_mask`).
     """
 
     name: str
@@ -32,6 +34,7 @@ class View:
     depth: Tensor | None
     normal: Tensor | None
     background_mask: Tensor | None = None
+    moving_mask: Tensor | None = None
 
 
 def load_views(
@@ -42,6 +45,7 @@ def load_views(
     for k in keyframes:
         depth = scene.depth(k)
         normal = scene.normals(k)
+        moving = scene.moving_mask(k)
         views.append(
             View(
                 k.name,
@@ -49,6 +53,7 @@ def load_views(
                 torch.as_tensor(scene.image(k) / 255.0, dtype=dtype, device=device),
                 torch.as_tensor(depth, dtype=dtype, device=device) if (depth > 0).any() else None,
                 torch.as_tensor(normal, dtype=dtype, device=device) if np.abs(normal).sum() > 0 else None,
+                moving_mask=None if moving is None else torch.as_tensor(moving, device=device),
             )
         )
     return views

@@ -318,7 +318,7 @@ def test_keyframe_lidar_keeps_the_scans_in_each_window_and_the_points_in_view() 
 
     # Camera times 0.45 (before a's window [0.5, 2]), 1.6 (both) and 2.4 s (b's window [1, 2.5] only).
     scans = [scan(0.35, 1.0), scan(1.5, 2.0), scan(2.3, 3.0)]
-    points = keyframe_lidar(scans, trajectory, calibration, keyframes, camera, 0.5)
+    points = keyframe_lidar(scans, trajectory, calibration, keyframes, camera, 0.5).static
     assert points[0].dtype == np.float32
     np.testing.assert_array_equal(points[0], [[0, 0, 2]])
     np.testing.assert_array_equal(points[1], [[0, 0, 2], [0, 0, 3]])

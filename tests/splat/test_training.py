@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -18,7 +19,7 @@ from splat.strategy import OpacityStrategy, VarianceStrategy
 from splat.strategy.growth import cloned_rows, subdivided_rows
 from splat.strategy.variance import depth_error
 from splat.trainer import Trainer, TrainingDivergedError, train
-from splat.views import View
+from splat.views import View, load_views
 
 
 @pytest.fixture(scope="module")
@@ -337,3 +338,42 @@ def test_a_full_disk_during_export_leaves_no_partial_file(scene_dir, tmp_path):
         assert not list(disk.glob("*.tmp"))  # the partial file was removed
     finally:
         subprocess.run(["umount", "-l", str(disk)], capture_output=True)
+
+
+def test_masked_pixels_give_the_photometric_loss_no_gradient():
+    from splat.losses import training_loss
+
+    rendered = torch.rand(16, 24, 3, requires_grad=True)
+    target = torch.rand(16, 24, 3)
+    mask = torch.zeros(16, 24, dtype=torch.bool)
+    mask[2:14, 2:22] = True
+    out = SimpleNamespace(rgb=rendered, max_weight=torch.zeros(1), distortion=torch.zeros(1))
+    config = make_config("ours", "default", w_opacity=0.0, w_distortion=0.0)
+    terms = training_loss(out, target, None, None, torch.zeros(0), config, moving_mask=mask)
+    terms.total.backward()
+    assert float(terms.l1.detach()) == pytest.approx(float((rendered - target).detach().abs()[~mask].mean()))
+    # D-SSIM's 11x11 window reaches 5 pixels into the mask: its centre gets no gradient at all.
+    assert rendered.grad[7:9, 11:13].abs().max() == 0
+    assert rendered.grad[~mask].abs().sum() > 0
+    unmasked = training_loss(out, target, None, None, torch.zeros(0), config)
+    assert float(unmasked.l1.detach()) == pytest.approx(float((rendered - target).detach().abs().mean()))
+
+
+def test_a_keyframe_with_moving_points_has_a_mask_around_them(scene_dir, tmp_path):
+    import shutil
+
+    from slam_bridge.scene import MOVING_DIR, load_scene
+
+    root = tmp_path / "scene"
+    shutil.copytree(scene_dir, root)
+    scene = load_scene(root)
+    first, second = scene.keyframes[:2]
+    (root / MOVING_DIR).mkdir()
+    centre = CAMERA.unproject(np.array([[CAMERA.width / 2, CAMERA.height / 2]]), 2.0).astype(np.float32)
+    np.save(root / MOVING_DIR / f"{first.name}.npy", centre)
+    mask = scene.moving_mask(first)
+    assert mask.shape == (CAMERA.height, CAMERA.width) and mask[CAMERA.height // 2, CAMERA.width // 2]
+    assert 0 < mask.sum() < 0.1 * mask.size
+    assert scene.moving_mask(second) is None
+    views = load_views(scene, scene.keyframes[:2])
+    assert views[0].moving_mask is not None and views[1].moving_mask is None
