@@ -4,7 +4,8 @@ Outdoors the camera sees sky and structure above the LiDAR's field (building top
 an overpass) and beyond its range; the warm-start mesh has no triangle there, so training could
 only paint the background's colour. The keyframes' triangulated feature points
 (``SCENE_DIR/sparse_points.ply``, :mod:`slam_bridge.sparse_points`) reach those surfaces. Each
-point no LiDAR return explains becomes one small triangle facing the keyframe that sees it best,
+point that no LiDAR return explains, and that the LiDAR does not see through (a wrong
+triangulation in front of a surface), becomes one small triangle facing the nearest keyframe,
 as large as the gaps to its neighbouring points (the size rule of splatting's SfM
 initialisation); training then moves, densifies or prunes them like any other triangle.
 """
@@ -14,13 +15,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import minimum_filter
 from scipy.spatial import cKDTree
+
+from rig.camera import CameraModel
+from rig.transforms import invert, transform_points
 
 #: A sparse point is explained by the LiDAR when a return lies within this distance of it: the
 #: larger of an absolute floor and a fraction of its distance from the nearest camera (the
 #: triangulation's error grows with depth).
 EXPLAINED_MIN_M = 0.3
 EXPLAINED_FRACTION = 0.03
+#: A point that this many keyframes' LiDAR sees through (a return beyond it by the explained radius,
+#: the nearest in a window of this many pixels) is a wrong triangulation, never a seed.
+SEE_THROUGH_VOTES = 2
+SEE_THROUGH_WINDOW_PX = 5
 #: Neighbours whose mean distance sizes a seed, and its bounds as a fraction of its depth.
 SIZE_NEIGHBOURS = 3
 SIZE_MIN_FRACTION = 0.005
@@ -30,17 +39,20 @@ SIZE_MAX_FRACTION = 0.05
 @dataclass(frozen=True)
 class CameraOnlySeeds:
     """Triangles ``(S, 3, 3)`` and their colours ``(S, 3, 3)`` in [0, 1] at the ``S`` sparse points
-    no LiDAR return explains, of ``n_points`` in all."""
+    no LiDAR return explains or sees through, of ``n_points`` in all (``n_unexplained`` of them
+    unexplained)."""
 
     triangles: np.ndarray
     colors: np.ndarray
     n_points: int
+    n_unexplained: int
 
     @property
     def reason(self) -> str:
         return (
-            f"{len(self.triangles)} camera-only triangles seeded at the sparse points no LiDAR return "
-            f"explains ({len(self.triangles)} of {self.n_points})"
+            f"{len(self.triangles)} camera-only triangles seeded at sparse points: {self.n_unexplained} of "
+            f"{self.n_points} are not explained by a LiDAR return, "
+            f"{self.n_unexplained - len(self.triangles)} of those the LiDAR sees through"
         )
 
 
@@ -56,6 +68,27 @@ def unexplained_points(points: np.ndarray, lidar: np.ndarray, camera_centres: np
     return nearest > radius
 
 
+def seen_through(
+    points: np.ndarray, camera: CameraModel, poses_world_cam: np.ndarray, depths: list[np.ndarray]
+) -> np.ndarray:
+    """``(N,)`` bool: the points ``(N, 3)`` that at least :data:`SEE_THROUGH_VOTES` keyframes (poses
+    ``(K, 4, 4)``, LiDAR depth images ``(H, W)``, 0 = no return) see through: the nearest return
+    within :data:`SEE_THROUGH_WINDOW_PX` of the point's pixel lies beyond it by more than the
+    explained radius. Above the LiDAR's field there is no return, so nothing is seen through."""
+    votes = np.zeros(len(points), dtype=np.int64)
+    for T_world_cam, depth in zip(poses_world_cam, depths, strict=True):
+        nearest = minimum_filter(np.where(depth > 0, depth, np.inf), size=SEE_THROUGH_WINDOW_PX)
+        in_camera = transform_points(invert(T_world_cam), points)
+        pixels = camera.project(in_camera)
+        inside = camera.in_image(pixels)
+        cols, rows = np.round(pixels[inside]).astype(np.int64).T
+        z = in_camera[inside, 2]
+        margin = np.maximum(EXPLAINED_MIN_M, EXPLAINED_FRACTION * z)
+        beyond = nearest[rows, cols]
+        votes[inside] += np.isfinite(beyond) & (beyond > z + margin)
+    return votes >= SEE_THROUGH_VOTES
+
+
 def facing_triangles(points: np.ndarray, normals: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """Equilateral triangles ``(N, 3, 3)`` centred on ``points`` ``(N, 3)`` in the planes of unit
     ``normals`` ``(N, 3)``, with circumradii ``radii`` ``(N,)``."""
@@ -69,16 +102,26 @@ def facing_triangles(points: np.ndarray, normals: np.ndarray, radii: np.ndarray)
 
 
 def camera_only_seeds(
-    points: np.ndarray, colors: np.ndarray, lidar: np.ndarray, camera_centres: np.ndarray
+    points: np.ndarray,
+    colors: np.ndarray,
+    lidar: np.ndarray,
+    camera: CameraModel,
+    poses_world_cam: np.ndarray,
+    depths: list[np.ndarray],
 ) -> CameraOnlySeeds:
     """One triangle at each sparse point ``(N, 3)`` (RGB ``(N, 3)`` uint8) that ``lidar`` ``(M, 3)``
-    does not explain (:func:`unexplained_points`), facing its nearest of ``camera_centres``
-    ``(K, 3)``, its circumradius the mean distance to its :data:`SIZE_NEIGHBOURS` nearest sparse
-    points within [:data:`SIZE_MIN_FRACTION`, :data:`SIZE_MAX_FRACTION`] of its depth."""
-    keep = unexplained_points(points, lidar, camera_centres)
+    does not explain (:func:`unexplained_points`) and the keyframes (``camera`` at
+    ``poses_world_cam`` ``(K, 4, 4)`` with LiDAR depth images ``depths``) do not see through
+    (:func:`seen_through`), facing its nearest keyframe, its circumradius the mean distance to its
+    :data:`SIZE_NEIGHBOURS` nearest sparse points within [:data:`SIZE_MIN_FRACTION`,
+    :data:`SIZE_MAX_FRACTION`] of its depth."""
+    camera_centres = poses_world_cam[:, :3, 3]
+    unexplained = unexplained_points(points, lidar, camera_centres)
+    keep = unexplained.copy()
+    keep[unexplained] = ~seen_through(points[unexplained], camera, poses_world_cam, depths)
     empty = np.zeros((0, 3, 3))
     if keep.sum() == 0:
-        return CameraOnlySeeds(empty, empty, len(points))
+        return CameraOnlySeeds(empty, empty, len(points), int(unexplained.sum()))
     chosen = points[keep]
     depth, nearest_camera = cKDTree(camera_centres).query(chosen)
     towards = camera_centres[nearest_camera] - chosen
@@ -90,4 +133,4 @@ def camera_only_seeds(
         gaps = SIZE_MAX_FRACTION * depth
     radii = np.clip(gaps, SIZE_MIN_FRACTION * depth, SIZE_MAX_FRACTION * depth)
     rgb = np.repeat((colors[keep] / 255.0)[:, None, :], 3, axis=1)
-    return CameraOnlySeeds(facing_triangles(chosen, normals, radii), rgb, len(points))
+    return CameraOnlySeeds(facing_triangles(chosen, normals, radii), rgb, len(points), int(unexplained.sum()))

@@ -74,8 +74,8 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         notes.append("no camera-only triangles: the scene has no sparse points (lts prepare --sparse-points)")
     elif config.camera_only_seeds:
         points, point_colors = scene.sparse_points()
-        centres = np.stack([k.T_world_cam[:3, 3] for k in train])
-        seeds = camera_only_seeds(points, point_colors, lidar, centres)
+        poses, depths = np.stack([k.T_world_cam for k in train]), [scene.depth(k) for k in train]
+        seeds = camera_only_seeds(points, point_colors, lidar, scene.camera, poses, depths)
         notes.append(seeds.reason)
         triangles = np.concatenate([triangles, seeds.triangles])
         colors = None if colors is None else np.concatenate([colors, seeds.colors])
