@@ -20,7 +20,7 @@ import torch
 from rig.atomic_file import atomic_path
 from rig.cli_support import console
 from rig.errors import InputError
-from slam_bridge.scene import Scene, load_scene
+from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.background_mask import scored_background_mask
 from splat.config import TrainConfig, load_config
@@ -365,7 +365,7 @@ class Trainer:
         # The loop evaluates its last iteration (the end, or where it stopped early).
         test = self.state.last_test
         write_renders(self.model, self.test_views, self.scene.camera, layout.renders_dir(self.run_dir))
-        export = _export(self.model, self.train_views, self.scene.camera, self.run_dir)
+        export = _export(self.model, self.scene, self.train_keyframes, self.train_views, self.run_dir)
         c, s = self.config, self.state
         result = TrainResult(
             str(self.run_dir), c.method, c.preset, c.device, s.iteration, round(s.elapsed_s, 3),
@@ -390,10 +390,25 @@ def seen_triangles(model: TriangleModel, views: list[View], camera) -> torch.Ten
     return seen
 
 
-def _export(model: TriangleModel, views: list[View], camera, run_dir: Path) -> dict:
+def camera_only_triangles(model: TriangleModel, scene: Scene, keyframes: list[Keyframe]) -> np.ndarray:
+    """``(F,)`` bool: triangles whose centroid no LiDAR return of ``keyframes`` explains
+    (:func:`splat.camera_only.unexplained_points`): geometry from the images alone."""
+    from splat.camera_only import unexplained_points
+    from splat.lidar_points import lidar_points
+
+    centroids = model.params["vertices"].detach().mean(dim=1).cpu().double().numpy()
+    centres = np.stack([k.T_world_cam[:3, 3] for k in keyframes])
+    return unexplained_points(centroids, lidar_points(scene, keyframes), centres)
+
+
+def _export(
+    model: TriangleModel, scene: Scene, keyframes: list[Keyframe], views: list[View], run_dir: Path
+) -> dict:
     from splat.export import export_mesh
 
-    result = export_mesh(model, run_dir, seen=seen_triangles(model, views, camera))
+    seen = seen_triangles(model, views, scene.camera)
+    camera_only = camera_only_triangles(model, scene, keyframes)
+    result = export_mesh(model, run_dir, seen=seen, camera_only=camera_only)
     return json.loads(json.dumps(asdict(result), default=str))
 
 

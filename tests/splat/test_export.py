@@ -90,6 +90,20 @@ def test_collision_mesh_is_filtered_and_welded(tmp_path: Path) -> None:
         assert mesh.area == pytest.approx((GRID * CELL_M) ** 2, rel=1e-3), name
 
 
+def test_camera_only_triangles_are_flagged_and_kept_out_of_the_collision_mesh(tmp_path: Path) -> None:
+    model, seen, _ = scene()
+    camera_only = np.zeros(model.n_triangles, dtype=bool)
+    camera_only[8:13] = True  # grid cells, opaque, seen, without duplicates
+    result = export_mesh(model, tmp_path, seen=seen, camera_only=camera_only)
+    assert result.n_removed_camera_only == 5
+    assert result.n_collision_triangles == N_GRID - 5
+    assert len(load(tmp_path / "mesh.ply").faces) == 40  # the render mesh keeps them
+    raw = trimesh.load(tmp_path / "mesh.ply", process=False).metadata["_ply_raw"]["face"]["data"]
+    np.testing.assert_array_equal(raw["camera_only"], camera_only.astype(np.uint8))
+    with pytest.raises(InputError, match="flags"):
+        export_mesh(model, tmp_path, seen=seen, camera_only=camera_only[:3])
+
+
 def test_weld_distance_is_respected(tmp_path: Path) -> None:
     """Corners jittered by up to 2 mm (pairs up to ~5.7 mm apart) stay apart at a 0.1 mm weld."""
     model, seen, _ = scene(jitter_m=2e-3)
