@@ -45,7 +45,7 @@ class MapSummary:
             f"odometry: KISS-ICP voxel {s['voxel_m']:.2f} m, {s['points_per_voxel']} points per voxel, "
             f"ranges up to {s['max_range_m']:g} m"
             + (", the static points registered again" if s["static_reregistration"] else "")
-            + f"; TSDF voxel {s['tsdf_voxel_m']:g} m",
+            + f"; TSDF voxel {s['tsdf_voxel_m']:.3g} m",
             f"trajectory: {q.verdict}"
             + (
                 f" (moving objects moved it by at most {q.dynamic_shift_m:.2f} m)"

@@ -57,6 +57,9 @@ class TrainConfig(BaseModel):
     w_opacity: float = Field(0.0005, ge=0)
     w_normal: float = Field(0.05, ge=0)
     w_depth: float = Field(0.2, ge=0)
+    depth_reference_m: float = Field(
+        8.0, gt=0, description="LiDAR returns beyond this count their depth error relative to their range"
+    )
     w_distortion: float = Field(0.01, ge=0)
 
     # Learning rates (Adam) and their schedule.

@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import kornia
@@ -42,14 +43,18 @@ def dssim(rendered: Tensor, target: Tensor, keep: Tensor | None = None) -> Tenso
     return 1.0 - (ssim_map.mean() if keep is None else ssim_map[keep].mean())
 
 
-def accumulated_depth_l1(out: RenderOutput, lidar_depth: Tensor) -> Tensor:
-    """Mean ``|Σ w z - D_lidar|`` (metres) over pixels with a LiDAR return (``(H, W)``, 0 = none).
-    The accumulated depth ``Σ w z`` is not divided by alpha, so a pixel whose LiDAR saw a surface is
-    also pulled towards full coverage (a hole renders a depth near 0)."""
+def accumulated_depth_l1(out: RenderOutput, lidar_depth: Tensor, reference_m: float = math.inf) -> Tensor:
+    """Mean ``|Σ w z - D_lidar| / max(1, D_lidar / reference_m)`` (metres) over pixels with a LiDAR
+    return (``(H, W)``, 0 = none): returns beyond ``reference_m`` count their error relative to their
+    range, as a pixel's footprint grows with it (outdoors, 50–80 m returns would otherwise outweigh
+    everything else). The accumulated depth ``Σ w z`` is not divided by alpha, so a pixel whose
+    LiDAR saw a surface is also pulled towards full coverage (a hole renders a depth near 0)."""
     valid = lidar_depth > 0
     if not bool(valid.any()):
         return out.accumulated_depth.new_zeros(())
-    return (out.accumulated_depth[valid] - lidar_depth[valid]).abs().mean()
+    target = lidar_depth[valid]
+    error = (out.accumulated_depth[valid] - target).abs()
+    return (error / (target / reference_m).clamp(min=1.0)).mean()
 
 
 def normal_loss(out: RenderOutput, prior: Tensor) -> Tensor:
@@ -89,7 +94,11 @@ def training_loss(
     error = (out.rgb - image).abs()
     l1 = error.mean() if keep is None else error[keep].mean()
     ds = dssim(out.rgb, image, keep) if config.lambda_dssim > 0 else zero
-    depth = accumulated_depth_l1(out, lidar_depth) if lidar_depth is not None and config.w_depth > 0 else zero
+    depth = (
+        accumulated_depth_l1(out, lidar_depth, config.depth_reference_m)
+        if lidar_depth is not None and config.w_depth > 0
+        else zero
+    )
     normal = normal_loss(out, normal_prior) if normal_prior is not None and config.w_normal > 0 else zero
     in_view = out.max_weight > 0
     opacity_reg = opacity[in_view].mean() if config.w_opacity > 0 and bool(in_view.any()) else zero

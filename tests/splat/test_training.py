@@ -377,3 +377,12 @@ def test_a_keyframe_with_moving_points_has_a_mask_around_them(scene_dir, tmp_pat
     assert scene.moving_mask(second) is None
     views = load_views(scene, scene.keyframes[:2])
     assert views[0].moving_mask is not None and views[1].moving_mask is None
+
+
+def test_far_returns_count_their_depth_error_relative_to_their_range():
+    from splat.losses import accumulated_depth_l1
+
+    lidar = torch.tensor([[4.0, 40.0, 0.0]])
+    out = SimpleNamespace(accumulated_depth=torch.tensor([[4.1, 41.0, 7.0]]))  # no return: no error
+    assert float(accumulated_depth_l1(out, lidar)) == pytest.approx((0.1 + 1.0) / 2)
+    assert float(accumulated_depth_l1(out, lidar, reference_m=8.0)) == pytest.approx((0.1 + 1.0 / 5) / 2)
