@@ -2,11 +2,11 @@
 
 The render mesh keeps every triangle independent (``3F`` vertices) with its per-vertex colours:
 that is what the rasteriser drew; with camera-only flags, its PLY holds them as the face property
-``camera_only`` (1: geometry from the images alone, no LiDAR return near it — lower confidence).
-The collision mesh keeps only the triangles a physics engine should collide with — opaque, seen
-from a training view, backed by the LiDAR, not degenerate — welds their corners into one connected
-surface and drops duplicate faces. It is written as PLY (the toolkit's mesh format)
-and OBJ (the format pybullet reads).
+``camera_only`` (1: no LiDAR return near the triangle — geometry from the images alone, or the
+floor filled where the LiDAR never looked — lower confidence). The collision mesh keeps only the
+triangles a physics engine should collide with — opaque, seen from a training view, not
+degenerate — welds their corners into one connected surface and drops duplicate faces. It is
+written as PLY (the toolkit's mesh format) and OBJ (the format pybullet reads).
 """
 
 from __future__ import annotations
@@ -39,7 +39,6 @@ class ExportResult:
         n_collision_triangles: triangles in the collision mesh.
         n_removed_transparent: triangles left out of the collision mesh for opacity < min_opacity.
         n_removed_unseen: of the rest, those that dominated no pixel of any training view.
-        n_removed_camera_only: of the rest, those no LiDAR return backs (camera-only geometry).
         n_removed_degenerate: of the rest, those thinner than the weld distance (after welding).
         n_removed_duplicate: of the rest, repeats of a face already kept (same corners, any order).
         n_collision_vertices: vertices of the welded collision mesh.
@@ -50,7 +49,6 @@ class ExportResult:
     n_collision_triangles: int
     n_removed_transparent: int
     n_removed_unseen: int
-    n_removed_camera_only: int
     n_removed_degenerate: int
     n_removed_duplicate: int
     n_collision_vertices: int
@@ -73,7 +71,7 @@ def export_mesh(
         seen: ``(F,)`` bool, True where the triangle dominated at least one pixel of a training
             view; None keeps all triangles.
         camera_only: ``(F,)`` bool, True where no LiDAR return backs the triangle: flagged in the
-            render PLY, left out of the collision mesh; None: no flags, all backed.
+            render PLY; None: no flags.
         min_opacity: triangles with a lower activated opacity are left out of the collision mesh.
         weld_m: collision-mesh corners closer than this (metres) become one vertex.
 
@@ -92,17 +90,16 @@ def export_mesh(
     keep_seen = np.ones(n, dtype=bool) if seen is None else _seen_mask(seen, n)
     if camera_only is not None and np.shape(camera_only) != (n,):
         raise InputError(f"expected ({n},) flags, got {np.shape(camera_only)}", field="camera_only")
-    backed = np.ones(n, dtype=bool) if camera_only is None else ~np.asarray(camera_only, dtype=bool)
 
     opaque = opacity >= min_opacity
     out_dir = Path(out_dir)
     collision, n_degenerate, n_duplicate = _collision_mesh(
-        triangles[opaque & keep_seen & backed], weld_m, out_dir / COLLISION_FILES[0]
+        triangles[opaque & keep_seen], weld_m, out_dir / COLLISION_FILES[0]
     )
     out_dir.mkdir(parents=True, exist_ok=True)
     render = _render_mesh(triangles, colors)
     if camera_only is not None:
-        render.face_attributes["camera_only"] = (~backed).astype(np.uint8)
+        render.face_attributes["camera_only"] = np.asarray(camera_only, dtype=np.uint8)
     paths = [out_dir / name for name in RENDER_FILES + COLLISION_FILES]
     blobs = [
         render.export(file_type="ply", encoding="binary"),
@@ -119,7 +116,6 @@ def export_mesh(
         n_collision_triangles=len(collision.faces),
         n_removed_transparent=int((~opaque).sum()),
         n_removed_unseen=int((opaque & ~keep_seen).sum()),
-        n_removed_camera_only=int((opaque & keep_seen & ~backed).sum()),
         n_removed_degenerate=n_degenerate,
         n_removed_duplicate=n_duplicate,
         n_collision_vertices=len(collision.vertices),

@@ -90,14 +90,13 @@ def test_collision_mesh_is_filtered_and_welded(tmp_path: Path) -> None:
         assert mesh.area == pytest.approx((GRID * CELL_M) ** 2, rel=1e-3), name
 
 
-def test_camera_only_triangles_are_flagged_and_kept_out_of_the_collision_mesh(tmp_path: Path) -> None:
+def test_camera_only_triangles_are_flagged_in_the_render_mesh(tmp_path: Path) -> None:
     model, seen, _ = scene()
     camera_only = np.zeros(model.n_triangles, dtype=bool)
-    camera_only[8:13] = True  # grid cells, opaque, seen, without duplicates
+    camera_only[8:13] = True
     result = export_mesh(model, tmp_path, seen=seen, camera_only=camera_only)
-    assert result.n_removed_camera_only == 5
-    assert result.n_collision_triangles == N_GRID - 5
-    assert len(load(tmp_path / "mesh.ply").faces) == 40  # the render mesh keeps them
+    assert result.n_collision_triangles == N_GRID
+    assert len(load(tmp_path / "mesh.ply").faces) == 40
     raw = trimesh.load(tmp_path / "mesh.ply", process=False).metadata["_ply_raw"]["face"]["data"]
     np.testing.assert_array_equal(raw["camera_only"], camera_only.astype(np.uint8))
     with pytest.raises(InputError, match="flags"):
