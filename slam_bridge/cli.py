@@ -92,11 +92,12 @@ def run_command(
     start: float = START_OPTION,
     duration: float | None = DURATION_OPTION,
     voxel: float | None = typer.Option(
-        None, "--voxel", help="KISS-ICP voxel size in m (default: from the data)."
+        None, "--voxel", min=0.001, help="KISS-ICP voxel size in m (default: from the data)."
     ),
     tsdf_voxel: float | None = typer.Option(
         None,
         "--tsdf-voxel",
+        min=0.001,
         help="TSDF voxel size in m (mesh resolution); default: 1/150 of the first sweep's 95th-percentile "
         "range, at least 0.04 m (0.04 m in rooms, 0.15 m on a street seen by a 64-beam LiDAR).",
     ),
