@@ -82,8 +82,9 @@ def prepare_command(
     sparse_points: bool = typer.Option(
         False,
         "--sparse-points",
-        help="Triangulate COLMAP sparse points (needed by the TS+ baseline): SIFT matched between keyframes "
-        "that see the same surface of the SLAM mesh, guided by the poses; the same matches on every run.",
+        help="Triangulate COLMAP sparse points (the TS+ baseline starts from them; ours seeds camera-only "
+        "triangles at those the LiDAR never reached): SIFT matched between keyframes that see the same "
+        "surface of the SLAM mesh, guided by the poses; the same matches on every run.",
     ),
     refine_poses: bool = typer.Option(
         False,

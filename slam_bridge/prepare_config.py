@@ -28,7 +28,8 @@ class PrepareConfig:
         image_topic, points_topic: choose topics when a session has several.
         normals_dir: a folder of precomputed normal maps (e.g. from a monocular normal network) to
             use instead of the SLAM mesh's normals: see :func:`~slam_bridge.keyframe_normals.read_normal_map`.
-        sparse_points: triangulate COLMAP sparse points from the keyframes (for the TS+ baseline).
+        sparse_points: triangulate COLMAP sparse points from the keyframes (the TS+ baseline's
+            start, ours' camera-only seeds).
         refine_poses: refine the keyframe poses against the SLAM mesh, guarded by held-out
             matches (:mod:`slam_bridge.pose_refinement`); LiDAR points, normals and sparse points
             then use the refined poses.
