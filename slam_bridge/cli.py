@@ -99,7 +99,7 @@ def run_command(
         "--tsdf-voxel",
         min=0.001,
         help="TSDF voxel size in m (mesh resolution); default: 1/150 of the first sweep's 95th-percentile "
-        "range, at least 0.04 m (0.04 m in rooms, 0.15 m on a street seen by a 64-beam LiDAR).",
+        "range, at least 0.04 m (about 0.04 m in rooms, 0.14 m on a street seen by a 64-beam LiDAR).",
     ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
