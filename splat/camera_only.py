@@ -4,8 +4,9 @@ Outdoors the camera sees sky and structure above the LiDAR's field (building top
 an overpass) and beyond its range; the warm-start mesh has no triangle there, so training could
 only paint the background's colour. The keyframes' triangulated feature points
 (``SCENE_DIR/sparse_points.ply``, :mod:`slam_bridge.sparse_points`) reach those surfaces. Each
-point that no LiDAR return explains, and that the LiDAR does not see through (a wrong
-triangulation in front of a surface), becomes one small triangle facing the nearest keyframe,
+point that a keyframe sees above every LiDAR return of its image column (beyond the LiDAR's
+field or range), that no return explains and that the LiDAR does not see through (a wrong
+triangulation in front of a surface) becomes one small triangle facing the nearest keyframe,
 as large as the gaps to its neighbouring points (the size rule of splatting's SfM
 initialisation); training then moves, densifies or prunes them like any other triangle.
 """
@@ -15,11 +16,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import torch
 from scipy.ndimage import minimum_filter
 from scipy.spatial import cKDTree
 
 from rig.camera import CameraModel
 from rig.transforms import invert, transform_points
+from splat.background_mask import above_lidar
 
 #: A sparse point is explained by the LiDAR when a return lies within this distance of it: the
 #: larger of an absolute floor and a fraction of its distance from the nearest camera (the
@@ -39,8 +42,8 @@ SIZE_MAX_FRACTION = 0.05
 @dataclass(frozen=True)
 class CameraOnlySeeds:
     """Triangles ``(S, 3, 3)`` and their colours ``(S, 3, 3)`` in [0, 1] at the ``S`` sparse points
-    no LiDAR return explains or sees through, of ``n_points`` in all (``n_unexplained`` of them
-    unexplained)."""
+    beyond the LiDAR's reach that no return explains or sees through, of ``n_points`` in all
+    (``n_unexplained`` of them unexplained and beyond its reach)."""
 
     triangles: np.ndarray
     colors: np.ndarray
@@ -51,7 +54,7 @@ class CameraOnlySeeds:
     def reason(self) -> str:
         return (
             f"{len(self.triangles)} camera-only triangles seeded at sparse points: {self.n_unexplained} of "
-            f"{self.n_points} are not explained by a LiDAR return, "
+            f"{self.n_points} lie above the LiDAR's reach with no return near them, "
             f"{self.n_unexplained - len(self.triangles)} of those the LiDAR sees through"
         )
 
@@ -89,6 +92,23 @@ def seen_through(
     return votes >= SEE_THROUGH_VOTES
 
 
+def beyond_lidar_reach(
+    points: np.ndarray, camera: CameraModel, poses_world_cam: np.ndarray, depths: list[np.ndarray]
+) -> np.ndarray:
+    """``(N,)`` bool: the points ``(N, 3)`` that some keyframe (poses ``(K, 4, 4)``, LiDAR depth
+    images ``(H, W)``) sees above every LiDAR return of their image column
+    (:func:`splat.background_mask.above_lidar`): beyond the LiDAR's field or range."""
+    beyond = np.zeros(len(points), dtype=bool)
+    for T_world_cam, depth in zip(poses_world_cam, depths, strict=True):
+        above = above_lidar(torch.as_tensor(depth)).numpy()
+        in_camera = transform_points(invert(T_world_cam), points)
+        pixels = camera.project(in_camera)
+        inside = camera.in_image(pixels)
+        cols, rows = np.round(pixels[inside]).astype(np.int64).T
+        beyond[np.flatnonzero(inside)[above[rows, cols]]] = True
+    return beyond
+
+
 def facing_triangles(points: np.ndarray, normals: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """Equilateral triangles ``(N, 3, 3)`` centred on ``points`` ``(N, 3)`` in the planes of unit
     ``normals`` ``(N, 3)``, with circumradii ``radii`` ``(N,)``."""
@@ -110,13 +130,15 @@ def camera_only_seeds(
     depths: list[np.ndarray],
 ) -> CameraOnlySeeds:
     """One triangle at each sparse point ``(N, 3)`` (RGB ``(N, 3)`` uint8) that ``lidar`` ``(M, 3)``
-    does not explain (:func:`unexplained_points`) and the keyframes (``camera`` at
-    ``poses_world_cam`` ``(K, 4, 4)`` with LiDAR depth images ``depths``) do not see through
-    (:func:`seen_through`), facing its nearest keyframe, its circumradius the mean distance to its
+    does not explain (:func:`unexplained_points`), that lies beyond the LiDAR's reach in a keyframe
+    (``camera`` at ``poses_world_cam`` ``(K, 4, 4)`` with LiDAR depth images ``depths``;
+    :func:`beyond_lidar_reach`) and that they do not see through (:func:`seen_through`), facing
+    its nearest keyframe, its circumradius the mean distance to its
     :data:`SIZE_NEIGHBOURS` nearest sparse points within [:data:`SIZE_MIN_FRACTION`,
     :data:`SIZE_MAX_FRACTION`] of its depth."""
     camera_centres = poses_world_cam[:, :3, 3]
     unexplained = unexplained_points(points, lidar, camera_centres)
+    unexplained[unexplained] = beyond_lidar_reach(points[unexplained], camera, poses_world_cam, depths)
     keep = unexplained.copy()
     keep[unexplained] = ~seen_through(points[unexplained], camera, poses_world_cam, depths)
     empty = np.zeros((0, 3, 3))

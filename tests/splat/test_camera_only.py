@@ -4,6 +4,7 @@ from rig.camera import CameraModel
 from splat.camera_only import (
     EXPLAINED_MIN_M,
     SIZE_MAX_FRACTION,
+    beyond_lidar_reach,
     camera_only_seeds,
     facing_triangles,
     seen_through,
@@ -101,3 +102,17 @@ def test_points_the_lidar_sees_through_are_wrong_and_above_its_field_are_kept():
     seeds = camera_only_seeds(ahead[:2], np.zeros((2, 3), np.uint8), np.zeros((0, 3)), CAMERA, poses,
                               [lower_half, lower_half])  # fmt: skip
     np.testing.assert_allclose(seeds.triangles.mean(axis=1), ahead[1:2], atol=1e-9)
+
+
+def test_only_points_above_the_lidars_reach_are_seeded():
+    """Returns (5 m ahead) in rows 20 and below: a point 10 m ahead at row 26 is within the LiDAR's
+    reach in its column (the LiDAR simply missed it), one at row 11 is above it."""
+    points = np.array([[10.0, 0.0, 1.0], [10.0, 0.0, 4.0]])  # rows 26, 11
+    depth = _depth_of_a_wall(5.0, slice(20, None))
+    assert beyond_lidar_reach(points, CAMERA, POSE[None], [depth]).tolist() == [False, True]
+    assert beyond_lidar_reach(points, CAMERA, POSE[None], [np.zeros_like(depth)]).all()  # no return
+    seeds = camera_only_seeds(
+        points, np.zeros((2, 3), np.uint8), np.zeros((0, 3)), CAMERA, POSE[None], [depth]
+    )
+    np.testing.assert_allclose(seeds.triangles.mean(axis=1), points[1:], atol=1e-9)
+    assert seeds.n_unexplained == 1
