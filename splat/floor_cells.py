@@ -65,22 +65,18 @@ def enclosed_hidden_cells(
     mesh: trimesh.Trimesh,
     grid: PlaneGrid,
     seen_cells: np.ndarray,
-    camera_cells: np.ndarray,
     closing_m: float = 0.6,
     max_samples: int = 500_000,
 ) -> np.ndarray:
     """Floor cells ``(H, 2)`` that neither the mesh nor ``seen_cells`` ``(S, 2)`` (floor the cameras
-    saw through mesh holes) cover, but that the room around the cameras (``camera_cells``
-    ``(C, 2)``, the cells under them) closes in on.
+    saw through mesh holes) cover, but that the room closes in on.
 
     The mesh is sampled by area (about nine samples per cell). Up-facing samples within half a
     cell of the plane are floor; from there up to :data:`WALL_HEIGHT_M` they are structure
     (object footprints, wall bases); higher ones on vertical faces mark walls (a ceiling does not);
     more than two cells below the plane mark a pit. Floor and structure are closed morphologically
     over ``closing_m`` (bridging gaps in the LiDAR mesh), and the holes of that footprint that are
-    neither floor, wall nor pit are returned — only inside a room: an area the walls (closed over
-    ``closing_m`` too, so a doorway does not open it) enclose that holds a camera. On an open street
-    no wall encloses the cameras, and a building's inside holds none: nothing is completed there.
+    neither floor, wall nor pit are returned.
     """
     count = int(min(max_samples, max(1.0, mesh.area / (grid.cell_m / 3) ** 2)))
     samples, faces = trimesh.sample.sample_surface(mesh, count, seed=0)
@@ -112,13 +108,4 @@ def enclosed_hidden_cells(
     # Closing the floor over one cell keeps cells that random sampling happened to miss out.
     floor_cover = ndimage.binary_closing(raster(covered), structure=np.ones((3, 3), dtype=bool))
     hidden = enclosed & ~floor_cover & ~raster(cells[wall]) & ~raster(cells[pit])
-    return np.argwhere(hidden & _rooms_with_cameras(raster(cells[wall]), raster(camera_cells), disk)) + low
-
-
-def _rooms_with_cameras(walls: np.ndarray, cameras: np.ndarray, disk: np.ndarray) -> np.ndarray:
-    """``(X, Y)`` bool: the cells of the areas that the ``walls`` raster, closed by ``disk``,
-    encloses and that hold a cell of ``cameras`` (same raster)."""
-    closed = ndimage.binary_closing(walls, structure=disk)
-    areas, _ = ndimage.label(ndimage.binary_fill_holes(closed) & ~closed)
-    occupied = np.unique(areas[cameras])
-    return np.isin(areas, occupied[occupied > 0])
+    return np.argwhere(hidden) + low

@@ -172,15 +172,12 @@ def ground_fill(
     points = np.concatenate(hits) if hits else np.zeros((0, 3))
     grid = PlaneGrid(plane, cell_m)
     seen = np.unique(grid.cells(points), axis=0) if len(points) else np.zeros((0, 2), dtype=np.int64)
-    cameras = grid.cells(poses_world_cam[:, :3, 3])
-    hidden = enclosed_hidden_cells(mesh, grid, seen, cameras, closing_m) if complete_hidden else seen[:0]
+    hidden = enclosed_hidden_cells(mesh, grid, seen, closing_m) if complete_hidden else seen[:0]
     reason = (
         f"{len(seen)} floor cells of {cell_m:g} m added under mesh holes the cameras see through"
         if len(seen)
         else "the warm-start mesh covers the floor the cameras see"
     )
-    if complete_hidden and len(hidden):
+    if complete_hidden:
         reason += f"; {len(hidden)} hidden cells completed where the room encloses the floor"
-    elif complete_hidden:
-        reason += "; no hidden floor completed (no room around the cameras, or none of its floor is hidden)"
     return GroundFill(grid.triangles(seen), grid.triangles(hidden), plane, reason)
