@@ -81,14 +81,10 @@ def seen_through(
     votes = np.zeros(len(points), dtype=np.int64)
     for T_world_cam, depth in zip(poses_world_cam, depths, strict=True):
         nearest = minimum_filter(np.where(depth > 0, depth, np.inf), size=SEE_THROUGH_WINDOW_PX)
-        in_camera = transform_points(invert(T_world_cam), points)
-        pixels = camera.project(in_camera)
-        inside = camera.in_image(pixels)
-        cols, rows = np.round(pixels[inside]).astype(np.int64).T
-        z = in_camera[inside, 2]
+        index, rows, cols, z = _in_image(points, camera, T_world_cam)
         margin = np.maximum(EXPLAINED_MIN_M, EXPLAINED_FRACTION * z)
         beyond = nearest[rows, cols]
-        votes[inside] += np.isfinite(beyond) & (beyond > z + margin)
+        votes[index] += np.isfinite(beyond) & (beyond > z + margin)
     return votes >= SEE_THROUGH_VOTES
 
 
@@ -101,12 +97,21 @@ def beyond_lidar_reach(
     beyond = np.zeros(len(points), dtype=bool)
     for T_world_cam, depth in zip(poses_world_cam, depths, strict=True):
         above = above_lidar(torch.as_tensor(depth)).numpy()
-        in_camera = transform_points(invert(T_world_cam), points)
-        pixels = camera.project(in_camera)
-        inside = camera.in_image(pixels)
-        cols, rows = np.round(pixels[inside]).astype(np.int64).T
-        beyond[np.flatnonzero(inside)[above[rows, cols]]] = True
+        index, rows, cols, _ = _in_image(points, camera, T_world_cam)
+        beyond[index[above[rows, cols]]] = True
     return beyond
+
+
+def _in_image(
+    points: np.ndarray, camera: CameraModel, T_world_cam: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Of world points ``(N, 3)``, those in the image of ``camera`` at ``T_world_cam``: their indices
+    ``(M,)``, the rows and columns of their nearest pixels ``(M,)`` and their depths ``(M,)``."""
+    in_camera = transform_points(invert(T_world_cam), points)
+    pixels = camera.project(in_camera)
+    inside = camera.in_image(pixels)
+    cols, rows = np.round(pixels[inside]).astype(np.int64).T
+    return np.flatnonzero(inside), rows, cols, in_camera[inside, 2]
 
 
 def facing_triangles(points: np.ndarray, normals: np.ndarray, radii: np.ndarray) -> np.ndarray:
