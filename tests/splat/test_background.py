@@ -20,7 +20,7 @@ from splat.export import export_mesh
 from splat.model import TriangleModel, load_model, save_model
 from splat.param_rows import make_optimizer, replace_rows
 from splat.raster.scenes import pinhole
-from splat.trainer import Trainer
+from splat.trainer import Trainer, camera_only_triangles
 
 CAMERA = pinhole(64, 48, fov_deg=80.0)
 # Looking along world +y from 1 m up (world z up): image rows above the centre see the sky.
@@ -205,5 +205,9 @@ def test_training_with_and_without_a_background_exports_only_the_triangles(scene
     mesh = trimesh.load(tmp_path / "run" / "mesh.ply", force="mesh", process=False)
     assert len(mesh.faces) == model.n_triangles == result.n_triangles
     model.background = None
-    export_mesh(model, tmp_path / "without")
+    export_mesh(
+        model,
+        tmp_path / "without",
+        camera_only=camera_only_triangles(model, trainer.scene, trainer.train_keyframes),
+    )
     assert (tmp_path / "without" / "mesh.ply").read_bytes() == (tmp_path / "run" / "mesh.ply").read_bytes()
