@@ -85,14 +85,22 @@ def is_rig_ground_truth_mesh(path: Path) -> bool:
     return path.name == GT_MESH and (path.parent / GT_CAMERA_TRAJECTORY).is_file()
 
 
+def rig_ground_truth_dir(path: Path) -> Path | None:
+    """The virtual-rig ground-truth folder ``path`` names (the folder, its parent or its own
+    ``mesh.ply``; :func:`ground_truth_dir` checks it), or None for any other mesh file."""
+    if path.is_file() and not is_rig_ground_truth_mesh(path):
+        return None
+    return ground_truth_dir(path.parent if path.is_file() else path)
+
+
 def load_ground_truth(scene: Scene, path: str | Path) -> GroundTruth:
     """Load a ground truth in ``scene``'s world frame: a virtual-rig ground-truth folder (or its
     parent, or its own ``mesh.ply``) moved there by the keyframe poses, or any other mesh file
     (PLY/OBJ/GLB) as it is."""
     path = Path(path)
-    if path.is_file() and not is_rig_ground_truth_mesh(path):
+    folder = rig_ground_truth_dir(path)
+    if folder is None:
         return GroundTruth(load_mesh(ground_truth_mesh_file(path)), np.eye(4), None)
-    folder = ground_truth_dir(path.parent if path.is_file() else path)
     truth = read_tum(folder / GT_CAMERA_TRAJECTORY)
     stamps = np.array([k.t_ns for k in scene.keyframes], dtype=np.int64)
     covered = truth.covers(stamps)

@@ -183,13 +183,14 @@ def _as_rgb(image: torch.Tensor) -> np.ndarray:
     return image.detach().clamp(0, 1).cpu().numpy().astype(np.float32)
 
 
-def _render(model: TriangleModel, scene: Scene, T_world_cam: np.ndarray, depth: np.ndarray | None = None):
-    """The model's render at ``T_world_cam`` ``(4, 4)``; with the view's LiDAR ``depth`` ``(H, W)``,
-    the background only where the LiDAR did not reach (:mod:`splat.background_mask`)."""
+def _render(
+    model: TriangleModel, scene: Scene, T_world_cam: np.ndarray, background_mask: torch.Tensor | None = None
+):
+    """The model's render at ``T_world_cam`` ``(4, 4)``; with a ``background_mask`` ``(H, W)`` (the
+    view's :func:`~splat.background_mask.scored_background_mask`), the background only there."""
     T_cam_world = torch.as_tensor(np.linalg.inv(T_world_cam), dtype=torch.float32, device=model.device)
-    mask = None if depth is None else scored_background_mask(torch.as_tensor(depth, device=model.device))
     with torch.no_grad():
-        return model.render(scene.camera, T_cam_world, background_mask=mask)
+        return model.render(scene.camera, T_cam_world, background_mask=background_mask)
 
 
 def _photometric(
@@ -208,10 +209,10 @@ def _photometric(
     above_psnrs, static_psnrs, moving_fractions = [], [], []
     for i, keyframe in enumerate(tests):
         lidar = scene.depth(keyframe)
-        out = _render(model, scene, keyframe.T_world_cam, lidar)
+        above = scored_background_mask(torch.as_tensor(lidar, device=model.device))
+        out = _render(model, scene, keyframe.T_world_cam, above)
         render = _as_rgb(out.rgb)
         target = scene.image(keyframe).astype(np.float32) / 255.0
-        above = scored_background_mask(torch.as_tensor(lidar))
         if above is not None and bool(above.any()):
             above_psnrs.append(psnr(render, target, mask=above))
         if moving is not None:
@@ -254,12 +255,10 @@ def _photometric(
 
 def _rig_movers_dir(gt: Path) -> Path | None:
     """The virtual-rig ground-truth folder of ``gt`` when it has moving objects, else None."""
-    from eval.ground_truth import ground_truth_dir, is_rig_ground_truth_mesh
+    from eval.ground_truth import rig_ground_truth_dir
 
-    if gt.is_file() and not is_rig_ground_truth_mesh(gt):
-        return None
-    folder = ground_truth_dir(gt.parent if gt.is_file() else gt)
-    return folder if mover_names(folder) else None
+    folder = rig_ground_truth_dir(gt)
+    return folder if folder is not None and mover_names(folder) else None
 
 
 def _holes(
