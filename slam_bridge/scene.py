@@ -33,7 +33,7 @@ from rig.camera import CameraModel
 from rig.data_file import load_data_file
 from rig.errors import InputError
 from rig.transforms import check_rigid
-from slam_bridge.depth_image import visible_returns
+from slam_bridge.depth_image import nearest_returns, visible_returns
 from slam_bridge.prepare_config import PrepareConfig
 
 SCENE_FILE = "scene.json"
@@ -131,11 +131,9 @@ class Scene:
         path = self.root / MOVING_DIR / f"{keyframe.name}.npy"
         if not path.is_file():
             return None
-        points = _load_array(path, (None, 3))
+        pixels, _ = nearest_returns(_load_array(path, (None, 3)), self.camera)
         mask = np.zeros((self.camera.height, self.camera.width), dtype=np.uint8)
-        pixels = np.round(self.camera.project(points)).astype(np.int64)
-        inside = self.camera.in_image(pixels)
-        mask[pixels[inside, 1], pixels[inside, 0]] = 1
+        mask.flat[pixels] = 1
         radius = max(1, round(MOVING_MASK_RADIUS_FRACTION * self.camera.width))
         disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
         return cv2.dilate(mask, disk).astype(bool)
