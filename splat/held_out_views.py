@@ -15,7 +15,7 @@ from splat.views import View
 
 @torch.no_grad()
 def evaluate_views(model: TriangleModel, views: list[View], camera) -> dict[str, float]:
-    """Mean test PSNR (dB), SSIM (kornia, zero-padded windows: for early stopping and curves — the
+    """Mean test PSNR (dB), SSIM (:func:`splat.losses.ssim_map`: for early stopping and curves — the
     reported numbers come from :mod:`eval`) and median |expected depth - LiDAR| (m) over LiDAR pixels
     with alpha > 0.5."""
     psnrs, ssims, depth_errors = [], [], []

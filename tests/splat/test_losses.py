@@ -1,0 +1,40 @@
+"""The training losses against their library definitions."""
+
+from __future__ import annotations
+
+import kornia
+import pytest
+import torch
+
+from splat.losses import dssim, ssim_map
+
+
+@pytest.mark.parametrize(("height", "width"), [(24, 32), (61, 47)])
+def test_ssim_map_has_kornias_values_and_gradients(height, width):
+    generator = torch.Generator().manual_seed(0)
+    target = torch.rand(height, width, 3, generator=generator, dtype=torch.float64)
+    # A render near the target, as in training (SSIM's gradient is small and smooth there).
+    noise = torch.randn(height, width, 3, generator=generator, dtype=torch.float64)
+    start = (target + 0.1 * noise).clamp(0, 1)
+    ours = start.clone().requires_grad_()
+    theirs = start.clone().requires_grad_()
+
+    values = ssim_map(ours, target)
+    reference = kornia.metrics.ssim(
+        theirs.permute(2, 0, 1)[None], target.permute(2, 0, 1)[None], window_size=11
+    )[0].permute(1, 2, 0)
+    torch.testing.assert_close(values, reference, rtol=0, atol=1e-12)
+    values.square().sum().backward()
+    reference.square().sum().backward()
+    torch.testing.assert_close(ours.grad, theirs.grad, rtol=0, atol=1e-12)
+
+
+def test_dssim_of_an_image_with_itself_is_zero_and_keep_selects_pixels():
+    image = torch.rand(20, 30, 3, generator=torch.Generator().manual_seed(1))
+    assert float(dssim(image, image)) == pytest.approx(0.0, abs=1e-6)
+    noisy = (image + 0.2 * torch.rand(20, 30, 3, generator=torch.Generator().manual_seed(2))).clamp(0, 1)
+    keep = torch.zeros(20, 30, dtype=torch.bool)
+    keep[:, :15] = True
+    expected = 1 - ssim_map(noisy, image)[keep].mean()
+    assert float(dssim(noisy, image, keep)) == pytest.approx(float(expected))
+    assert float(dssim(noisy, image, keep)) != pytest.approx(float(dssim(noisy, image)))
