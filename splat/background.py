@@ -110,9 +110,18 @@ def camera_rays(camera: CameraModel, device: torch.device, dtype: torch.dtype) -
 def background_image(coefficients: Tensor, camera: CameraModel, T_cam_world: Tensor) -> Tensor:
     """The background ``(H, W, 3)`` seen by ``camera`` at ``T_cam_world`` ``(4, 4)`` (zero at pixels
     the camera model cannot back-project); differentiable in ``coefficients`` ``(K, 3)``."""
+    width, height = camera.size
+    return background_pixels(coefficients, camera, T_cam_world).view(height, width, 3)
+
+
+def background_pixels(
+    coefficients: Tensor, camera: CameraModel, T_cam_world: Tensor, pixels: Tensor | None = None
+) -> Tensor:
+    """The background at the row-major pixel indices ``pixels`` ``(N,)`` (all ``H·W`` pixels when
+    None) as ``(N, 3)``; as :func:`background_image` otherwise."""
     rays, valid = camera_rays(camera, coefficients.device, coefficients.dtype)
+    if pixels is not None:
+        rays, valid = rays[pixels], valid[pixels]
     # Row vectors: d_world = R_world_cam d_cam = R_cam_world^T d_cam, i.e. d_cam^T R_cam_world.
     directions = rays @ T_cam_world[:3, :3].to(coefficients)
-    rgb = background_rgb(coefficients, directions) * valid[:, None]
-    width, height = camera.size
-    return rgb.view(height, width, 3)
+    return background_rgb(coefficients, directions) * valid[:, None]

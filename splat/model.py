@@ -26,7 +26,7 @@ from torch import Tensor
 from rig.atomic_file import atomic_path
 from rig.camera import CameraModel
 from rig.errors import InputError
-from splat.background import MAX_DEGREE, background_image, n_coefficients
+from splat.background import MAX_DEGREE, background_image, background_pixels, n_coefficients
 from splat.raster import RenderOutput, render
 
 PARAM_NAMES = ("vertices", "colors", "opacity")
@@ -118,10 +118,15 @@ class TriangleModel:
         if self.background is None:
             return out
         shows = (1.0 - out.alpha).clamp(min=0.0)
-        if background_mask is not None:
-            shows = shows * background_mask
-        bg = background_image(self.background, camera, T_cam_world)
-        return replace(out, rgb=out.rgb + bg * shows[..., None])
+        if background_mask is None:
+            bg = background_image(self.background, camera, T_cam_world)
+            return replace(out, rgb=out.rgb + bg * shows[..., None])
+        # Only the masked pixels (indoors often none): the harmonics are not evaluated elsewhere.
+        pixels = background_mask.reshape(-1).nonzero().squeeze(1)
+        bg = background_pixels(self.background, camera, T_cam_world, pixels)
+        added = torch.zeros_like(out.rgb).view(-1, 3)
+        added = added.index_add(0, pixels, bg * shows.reshape(-1)[pixels, None])
+        return replace(out, rgb=out.rgb + added.view_as(out.rgb))
 
     def to_state(self) -> dict:
         """Plain tensors (detached, CPU) and schedule state, for ``torch.save`` (``background`` only
