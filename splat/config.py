@@ -113,6 +113,13 @@ class TrainConfig(BaseModel):
     )
 
     # Skipping work and bookkeeping.
+    coarse_until: float = Field(
+        0.25,
+        ge=0,
+        le=1,
+        description="this fraction of the iterations renders the training views at half resolution "
+        "(splat.coarse_views: a quarter of the pixels while the triangles are still soft); 0: never",
+    )
     eval_every: int = Field(250, ge=1)
     patience: int = Field(3, ge=1, description="evaluations without improvement before stopping")
     min_improvement_db: float = Field(0.05, ge=0)
@@ -183,6 +190,7 @@ def config_from_options(
     init_noise_m: float = 0.0,
     iterations: int | None = None,
     max_triangles: int | None = None,
+    coarse_until: float | None = None,
 ) -> TrainConfig:
     """The config ``lts train`` builds from its options (None: the preset's value), so that
     ``lts reconstruct`` can tell whether an existing run was made with the same ones."""
@@ -191,6 +199,8 @@ def config_from_options(
         overrides["iterations"] = iterations
     if max_triangles is not None:
         overrides["max_triangles"] = max_triangles
+    if coarse_until is not None:
+        overrides["coarse_until"] = coarse_until
     return make_config(method, preset, **overrides)
 
 

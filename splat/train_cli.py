@@ -28,6 +28,14 @@ def train_command(
     init_noise: float = typer.Option(
         0.0, "--init-noise", min=0, help="Gaussian noise (m) on warm-start vertices."
     ),
+    half_resolution: float | None = typer.Option(
+        None,
+        "--half-resolution",
+        min=0.0,
+        max=1.0,
+        help="Fraction of the iterations that render the training views at half resolution (a faster "
+        "start; 0: full resolution throughout) [default: 0.25].",
+    ),
     seed: int = typer.Option(0, help="Seed of view order, sampling and noise."),
     device: str = typer.Option("cpu", help="cpu or cuda (the matching rasteriser kernel is used)."),
     resume: bool = typer.Option(
@@ -47,7 +55,7 @@ def train_command(
 
     config = config_from_options(
         method, preset, seed=seed, device=device, init_noise_m=init_noise, iterations=iterations,
-        max_triangles=max_triangles,
+        max_triangles=max_triangles, coarse_until=half_resolution,
     )  # fmt: skip
     try:
         result = train(scene, out, config, resume=resume, progress=progress)

@@ -18,11 +18,13 @@ import numpy as np
 import torch
 
 from rig.atomic_file import atomic_path
+from rig.camera import CameraModel
 from rig.cli_support import console
 from rig.errors import InputError
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.background_mask import scored_background_mask
+from splat.coarse_views import half_camera, half_view
 from splat.config import TrainConfig, load_config
 from splat.held_out_views import evaluate_views, write_renders
 from splat.initialise import build_model, initial_triangles
@@ -124,6 +126,7 @@ class Trainer:
         self.config = config
         self.log = log
         self.state = _State()
+        self._half_views: dict[int, View] = {}
         self.strategy = strategy_for(config, log)
         if config.device.startswith("cuda") and not torch.cuda.is_available():
             raise InputError(
@@ -179,6 +182,13 @@ class Trainer:
         self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
         self.strategy.initialize(self.model)
         layout.metrics_path(self.run_dir).write_text("")
+        coarse = math.ceil(self.config.coarse_until * self.config.iterations)
+        if coarse > 0:
+            half = half_camera(self.scene.camera)
+            self.state.skips.append(
+                f"the first {coarse} of {self.config.iterations} iterations rendered at half resolution "
+                f"({half.width}x{half.height}: a quarter of the pixels)"
+            )
 
     def prepare(self, resume: bool) -> None:
         """Select keyframes, load views, then initialise or restore from the last checkpoint."""
@@ -253,8 +263,8 @@ class Trainer:
         densification. Returns the loss terms, or None for a rejected step."""
         self.strategy.before_step(self.model, self.optimizer, it)
         _apply_schedule(self.model, self.optimizer, self.config, it)
-        view = self._training_view(it)
-        out = self.model.render(self.scene.camera, view.T_cam_world, background_mask=view.background_mask)
+        view, camera = self._training_view(it)
+        out = self.model.render(camera, view.T_cam_world, background_mask=view.background_mask)
         opacity = self.model.triangle_opacity()
         terms = training_loss(
             out, view.image, view.depth, view.normal, opacity, self.config, moving_mask=view.moving_mask
@@ -265,9 +275,17 @@ class Trainer:
         self._record(report)
         return terms.as_floats() if accepted else None
 
-    def _training_view(self, it: int) -> View:
+    def _training_view(self, it: int) -> tuple[View, CameraModel]:
+        """Iteration ``it``'s training view and the camera to render it with: at half resolution
+        before ``coarse_until`` (:mod:`splat.coarse_views`, made on first use and dropped after)."""
         n = len(self.train_views)
-        return self.train_views[_view_order(self.config.seed, it // n, n)[it % n]]
+        index = int(_view_order(self.config.seed, it // n, n)[it % n])
+        if it >= self.config.coarse_until * self.config.iterations:
+            self._half_views.clear()
+            return self.train_views[index], self.scene.camera
+        if index not in self._half_views:
+            self._half_views[index] = half_view(self.train_views[index])
+        return self._half_views[index], half_camera(self.scene.camera)
 
     def _optimizer_step(self, loss: torch.Tensor, it: int) -> bool:
         """Step the optimiser if ``loss`` and every gradient are finite, else count a rejected step

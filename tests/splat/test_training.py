@@ -292,12 +292,20 @@ def test_lts_train_cli_summary_and_clear_errors(scene_dir, tmp_path, lts_cli):
     assert code == 0, err
     summary = json.loads(out.strip().splitlines()[-1])
     assert summary["iterations"] == 20 and summary["n_triangles"] > 0 and "test_psnr" in summary["test"]
+    assert "the first 5 of 20 iterations rendered at half resolution (32x24" in " ".join(summary["skips"])
     code, _, err = lts_cli(*args)
     assert code == 2 and "--resume" in err
     code, _, err = lts_cli(*args[:-3], "--iterations", 30, "--resume")
     assert code == 2 and "iterations" in err
     code, _, err = lts_cli("train", tmp_path, "--out", tmp_path / "x")
     assert code == 2 and "scene.json" in err
+    code, _, err = lts_cli(
+        *args[:3], tmp_path / "full", "--iterations", 20, "--half-resolution", 0, "--no-progress"
+    )
+    assert code == 0, err
+    assert "coarse_until: 0.0" in (tmp_path / "full" / "config.yaml").read_text()
+    code, _, err = lts_cli(*args[:3], tmp_path / "y", "--half-resolution", 2)
+    assert code == 2 and "--half-resolution" in err
 
 
 def test_learning_rates_100x_too_high_never_leave_a_non_finite_model(scene_dir, tmp_path):
