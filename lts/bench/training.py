@@ -76,6 +76,7 @@ def train_and_score(bench: BenchScene, config, run_dir: Path, threshold_m: float
         "init_max_triangles": config.init_max_triangles,
         "max_triangles": config.max_triangles,
         "init_noise_m": config.init_noise_m,
+        "coarse_until": config.coarse_until,
         "train_seconds": result.train_seconds,
         "wall_seconds": round(wall, 2),
         "n_triangles": result.n_triangles,
@@ -85,6 +86,10 @@ def train_and_score(bench: BenchScene, config, run_dir: Path, threshold_m: float
         **geometry,
         "threshold_m": threshold_m,
     }
+
+
+def _run_name(config) -> str:
+    return f"it{config.iterations}_tri{config.init_max_triangles}_half{config.coarse_until:g}"
 
 
 def pareto_front(rows: list[dict], cost: str = "train_seconds", error: str = "chamfer_m") -> list[int]:
@@ -122,10 +127,17 @@ def _write(out: Path, name: str, result: dict) -> None:
 
 
 def bench_train(
-    bench: BenchScene, out: Path, iterations: list[int], init_triangles: list[int], log: Callable = print
+    bench: BenchScene,
+    out: Path,
+    iterations: list[int],
+    init_triangles: list[int],
+    half_resolution: list[float],
+    log: Callable = print,
 ) -> dict[str, Any]:
-    """Sweep iteration budgets × warm-start triangle budgets of ``ours``; the Pareto front of
-    training time against Chamfer error (and a plot ``train_pareto.png``)."""
+    """Sweep iteration budgets × warm-start triangle budgets × the fraction of iterations trained
+    at half resolution (``coarse_until``: 0 full resolution throughout, 1 half throughout) of
+    ``ours``; the Pareto front of training time against Chamfer error (and a plot
+    ``train_pareto.png``)."""
     from splat.config import make_config
 
     configs = [
@@ -137,11 +149,13 @@ def bench_train(
             max_triangles=max(3 * t, 1000),
             eval_every=max(n // 4, 1),
             densify_every=max(n // 6, 1),
+            coarse_until=h,
         )
         for n in iterations
         for t in init_triangles
+        for h in half_resolution
     ]
-    rows = _run_all(bench, configs, out, lambda c: f"it{c.iterations}_tri{c.init_max_triangles}", log)
+    rows = _run_all(bench, configs, out, _run_name, log)
     front = pareto_front(rows)
     result = {
         "scene": str(bench.scene_dir),
@@ -152,6 +166,35 @@ def bench_train(
     _plot_pareto(rows, front, out / "train_pareto.png")
     _write(out, "bench_train", result)
     return result
+
+
+def bench_profile(scene_dir: Path, out: Path, iterations: int, log: Callable = print) -> dict[str, Any]:
+    """One training of ``ours`` (default preset, ``iterations``) on ``scene_dir`` with every step
+    timed by section (:class:`splat.step_profile.ProfiledTrainer`); writes ``train_profile.json``."""
+    from splat.config import make_config
+    from splat.step_profile import ProfiledTrainer
+
+    config = make_config("ours", "default", iterations=iterations)
+    run_dir = out / "runs" / f"profile_it{iterations}"
+    if run_dir.exists():
+        shutil.rmtree(run_dir)
+    scene = load_scene(scene_dir)
+    trainer = ProfiledTrainer(scene, run_dir, config, log=lambda *_: None)
+    started = time.perf_counter()
+    trainer.prepare(resume=False)
+    prepare_s = time.perf_counter() - started
+    log(f"profiling {iterations} iterations on {scene_dir} ({scene.camera.width}x{scene.camera.height}) ...")
+    result = trainer.run(progress=False)
+    result_json = {
+        "scene": str(scene_dir),
+        "image_size": [scene.camera.width, scene.camera.height],
+        "set_up_seconds": round(prepare_s, 2),
+        "train_seconds": result.train_seconds,
+        "test_psnr": result.test.get("test_psnr"),
+        **trainer.profile(),
+    }
+    _write(out, "train_profile", result_json)
+    return result_json
 
 
 def bench_ablation(
@@ -215,7 +258,7 @@ def _plot_pareto(rows: list[dict], front: list[int], path: Path) -> None:
         label="Pareto front",
     )
     for r in rows:
-        label = f"{r['iterations']} it / {r['init_max_triangles'] // 1000}k"
+        label = f"{r['iterations']} it / {r['init_max_triangles'] // 1000}k / ½×{r['coarse_until']:g}"
         ax.annotate(
             label, (r["train_seconds"], r["chamfer_m"]), fontsize=7, textcoords="offset points", xytext=(4, 4)
         )
