@@ -13,12 +13,24 @@ coarse for this reason. The half-size view is the full one pooled over 2 × 2 bl
 
 from __future__ import annotations
 
+import math
+
 import torch
 import torch.nn.functional as F
 from torch import Tensor
 
 from rig.camera import CameraModel
+from splat.config import TrainConfig
 from splat.views import View
+
+
+def coarse_iterations(camera: CameraModel, config: TrainConfig) -> int:
+    """How many iterations of a run with ``config`` start at half resolution: ``coarse_until`` of
+    them, or none when the half-size images of ``camera`` would have fewer than
+    ``coarse_min_side_px`` pixels on their shorter side."""
+    if min(camera.width, camera.height) // 2 < config.coarse_min_side_px:
+        return 0
+    return math.ceil(config.coarse_until * config.iterations)
 
 
 def half_camera(camera: CameraModel) -> CameraModel:

@@ -24,7 +24,7 @@ from rig.errors import InputError
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.background_mask import scored_background_mask
-from splat.coarse_views import half_camera, half_view
+from splat.coarse_views import coarse_iterations, half_camera, half_view
 from splat.config import TrainConfig, load_config
 from splat.held_out_views import evaluate_views, write_renders
 from splat.initialise import build_model, initial_triangles
@@ -182,7 +182,7 @@ class Trainer:
         self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
         self.strategy.initialize(self.model)
         layout.metrics_path(self.run_dir).write_text("")
-        coarse = math.ceil(self.config.coarse_until * self.config.iterations)
+        coarse = coarse_iterations(self.scene.camera, self.config)
         if coarse > 0:
             half = half_camera(self.scene.camera)
             self.state.skips.append(
@@ -276,11 +276,12 @@ class Trainer:
         return terms.as_floats() if accepted else None
 
     def _training_view(self, it: int) -> tuple[View, CameraModel]:
-        """Iteration ``it``'s training view and the camera to render it with: at half resolution
-        before ``coarse_until`` (:mod:`splat.coarse_views`, made on first use and dropped after)."""
+        """Iteration ``it``'s training view and the camera to render it with: at half resolution in
+        the coarse start (:func:`splat.coarse_views.coarse_iterations`; made on first use, dropped
+        after)."""
         n = len(self.train_views)
         index = int(_view_order(self.config.seed, it // n, n)[it % n])
-        if it >= self.config.coarse_until * self.config.iterations:
+        if it >= coarse_iterations(self.scene.camera, self.config):
             self._half_views.clear()
             return self.train_views[index], self.scene.camera
         if index not in self._half_views:

@@ -6,7 +6,8 @@ import numpy as np
 import torch
 
 from rig.camera import CameraModel
-from splat.coarse_views import half_camera, half_view
+from splat.coarse_views import coarse_iterations, half_camera, half_view
+from splat.config import make_config
 from splat.views import View
 
 
@@ -41,3 +42,12 @@ def test_half_view_averages_colour_keeps_the_nearest_return_and_its_normal():
     assert float(half.normal[0, 1].abs().sum()) == 0.0
     assert half.moving_mask.tolist() == [[False, False], [True, False]]
     assert half.background_mask is None
+
+
+def test_the_coarse_start_covers_its_fraction_unless_the_half_images_are_too_small():
+    config = make_config("ours", "default", iterations=1001, coarse_until=0.25)
+    K = np.array([[250.0, 0, 159.5], [0, 250.0, 119.5], [0, 0, 1]])
+    room = CameraModel("pinhole", 320, 240, K, np.zeros(0))
+    assert coarse_iterations(room, config) == 251  # iterations 0..250
+    assert coarse_iterations(room.scaled(160, 120), config) == 0  # 80x60 would lose detail
+    assert coarse_iterations(room, config.model_copy(update={"coarse_until": 0.0})) == 0

@@ -27,7 +27,7 @@ def scene_dir(tmp_path_factory):
 def _config():
     return make_config(
         "ours", "default", iterations=40, densify_every=20, densify_until=0.5, eval_every=20,
-        init_max_triangles=500, ground_fill=False, drop_redundant_keyframes=False,
+        init_max_triangles=500, ground_fill=False, drop_redundant_keyframes=False, coarse_min_side_px=1,
     )  # fmt: skip
 
 
