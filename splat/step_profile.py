@@ -25,7 +25,7 @@ from splat.trainer import Trainer, _apply_schedule
 
 #: The render outputs the loss reads; gradients come back to the rasteriser through them.
 LOSS_INPUTS = ("rgb", "accumulated_depth", "alpha", "normal", "distortion")
-#: Sections in the order of a step; ``loss (D-SSIM share)`` is a part of the two loss sections.
+#: Sections in the order of a step (their sum is the step's time).
 SECTIONS = (
     "strategy before step",
     "render forward",
@@ -36,6 +36,7 @@ SECTIONS = (
     "strategy after step (densification statistics)",
     "evaluation (held-out views)",
 )
+#: D-SSIM once more on its own, outside the sum: how much of the two loss sections it is.
 DSSIM_SHARE = "D-SSIM forward+backward (part of loss)"
 
 

@@ -258,7 +258,7 @@ def _plot_pareto(rows: list[dict], front: list[int], path: Path) -> None:
         label="Pareto front",
     )
     for r in rows:
-        label = f"{r['iterations']} it / {r['init_max_triangles'] // 1000}k / ½×{r['coarse_until']:g}"
+        label = f"{r['iterations']} it / {r['init_max_triangles'] // 1000}k / half {r['coarse_until']:g}"
         ax.annotate(
             label, (r["train_seconds"], r["chamfer_m"]), fontsize=7, textcoords="offset points", xytext=(4, 4)
         )

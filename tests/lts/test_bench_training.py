@@ -7,7 +7,8 @@ from lts.bench.training import _plot_bars, _plot_noise, _plot_pareto, pareto_fro
 
 def _row(seconds: float, chamfer: float, **extra) -> dict:
     return {"train_seconds": seconds, "chamfer_m": chamfer, "iterations": 100, "init_max_triangles": 4000,
-            "method": "ours", "psnr": 30.0, "fscore": 0.9, "init_noise_m": 0.0, **extra}  # fmt: skip
+            "method": "ours", "psnr": 30.0, "fscore": 0.9, "init_noise_m": 0.0, "coarse_until": 0.25,
+            **extra}  # fmt: skip
 
 
 def test_pareto_front_keeps_the_runs_nothing_beats_on_both_time_and_error():
