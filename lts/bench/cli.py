@@ -42,12 +42,13 @@ def bench_train_command(
         [4000, 12000], "--triangles", "-t", help="Warm-start triangle budgets."
     ),
     half_resolution: list[float] = typer.Option(
-        [0.0, 0.5, 1.0],
+        [0.25],
         "--half-resolution",
         min=0.0,
         max=1.0,
         help="Fractions of the iterations trained at half resolution (the coarse start; 0: full "
-        "resolution throughout, 1: half throughout).",
+        "resolution throughout, 1: half throughout; repeat to sweep). Views whose half size would be "
+        "under 120 px on the shorter side (the quick room's) always train at full resolution.",
     ),
     profile: bool = typer.Option(
         False,
