@@ -126,6 +126,9 @@ class Trainer:
         self.config = config
         self.log = log
         self.state = _State()
+        # The coarse start (splat.coarse_views): how many iterations, the camera and the views of it.
+        self._coarse_iterations = coarse_iterations(self.scene.camera, config)
+        self._half_camera = half_camera(self.scene.camera)
         self._half_views: dict[int, View] = {}
         self.strategy = strategy_for(config, log)
         if config.device.startswith("cuda") and not torch.cuda.is_available():
@@ -182,12 +185,11 @@ class Trainer:
         self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
         self.strategy.initialize(self.model)
         layout.metrics_path(self.run_dir).write_text("")
-        coarse = coarse_iterations(self.scene.camera, self.config)
-        if coarse > 0:
-            half = half_camera(self.scene.camera)
+        if self._coarse_iterations > 0:
+            half = self._half_camera
             self.state.skips.append(
-                f"the first {coarse} of {self.config.iterations} iterations rendered at half resolution "
-                f"({half.width}x{half.height}: a quarter of the pixels)"
+                f"the first {self._coarse_iterations} of {self.config.iterations} iterations rendered at "
+                f"half resolution ({half.width}x{half.height}: a quarter of the pixels)"
             )
 
     def prepare(self, resume: bool) -> None:
@@ -281,12 +283,12 @@ class Trainer:
         after)."""
         n = len(self.train_views)
         index = int(_view_order(self.config.seed, it // n, n)[it % n])
-        if it >= coarse_iterations(self.scene.camera, self.config):
+        if it >= self._coarse_iterations:
             self._half_views.clear()
             return self.train_views[index], self.scene.camera
         if index not in self._half_views:
             self._half_views[index] = half_view(self.train_views[index])
-        return self._half_views[index], half_camera(self.scene.camera)
+        return self._half_views[index], self._half_camera
 
     def _optimizer_step(self, loss: torch.Tensor, it: int) -> bool:
         """Step the optimiser if ``loss`` and every gradient are finite, else count a rejected step
