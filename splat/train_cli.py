@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from rig.cli_support import console, emit_json
-from splat.config import METHODS, PRESETS
+from splat.config import METHODS, PRESETS, TrainConfig
 
 
 def train_command(
@@ -34,7 +34,8 @@ def train_command(
         min=0.0,
         max=1.0,
         help="Fraction of the iterations that render the training views at half resolution (a faster "
-        "start; 0: full resolution throughout) [default: 0.25].",
+        "start; 0: full resolution throughout); "
+        f"by default {TrainConfig.model_fields['coarse_until'].default}.",
     ),
     seed: int = typer.Option(0, help="Seed of view order, sampling and noise."),
     device: str = typer.Option("cpu", help="cpu or cuda (the matching rasteriser kernel is used)."),

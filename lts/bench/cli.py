@@ -36,7 +36,10 @@ def _finish(result: dict, json_out: bool) -> None:
 @bench_app.command("train")
 def bench_train_command(
     iterations: list[int] | None = typer.Option(
-        None, "--iterations", "-n", help="Iteration budgets [default: 300 600 1200; with --profile 3000]."
+        None,
+        "--iterations",
+        "-n",
+        help="Iteration budgets (by default 300, 600 and 1200; with --profile 3000).",
     ),
     triangles: list[int] = typer.Option(
         [4000, 12000], "--triangles", "-t", help="Warm-start triangle budgets."
