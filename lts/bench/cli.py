@@ -161,6 +161,9 @@ def bench_raster(
     result = run_bench(triangles, width, height, repeats, backends, report)
     for backend, x in result["speedup_vs_reference"].items():
         console.print(f"  {backend}: {x:.1f}x faster than the reference", highlight=False)
+    if "cpu_simd" in result:
+        simd = result["cpu_simd"]
+        console.print(f"  cpu kernel: {simd['instruction_set']}, {simd['float_lanes']} float lanes", highlight=False)
     if json_out:
         emit_json(result)
 

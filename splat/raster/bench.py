@@ -114,7 +114,8 @@ def run_bench(
     """Benchmark every backend on random 2-20 px float32 scenes of each size.
 
     Returns ``{"rows": [BenchRow as dict], "speedup_vs_reference": {backend: x}}`` with x the
-    geometric mean over sizes of reference time / backend time.
+    geometric mean over sizes of reference time / backend time, and where the CPU kernel runs
+    ``"cpu_simd": {"instruction_set": name, "float_lanes": n}``.
     """
     backends = available_backends() if backends is None else backends
     camera = pinhole(width, height)
@@ -139,4 +140,8 @@ def run_bench(
             if row.backend == backend and row.n_triangles == ref.n_triangles
         ]
         speedup[backend] = round(math.exp(statistics.fmean(math.log(r) for r in ratios)), 2)
-    return {"rows": [asdict(r) for r in rows], "speedup_vs_reference": speedup}
+    result = {"rows": [asdict(r) for r in rows], "speedup_vs_reference": speedup}
+    if "cpu" in backends:
+        instruction_set, lanes = cpu_extension().simd()
+        result["cpu_simd"] = {"instruction_set": instruction_set, "float_lanes": lanes}
+    return result

@@ -28,4 +28,5 @@ def test_bench_raster_json_has_the_contract_fields() -> None:
         assert (row["width"], row["height"]) == (64, 48)
         assert row["ms_fwd_bwd"] > 0 and row["peak_mb"] >= 0
     assert data["speedup_vs_reference"]["cpu"] > 0
+    assert data["cpu_simd"]["float_lanes"] >= 1 and data["cpu_simd"]["instruction_set"]
     assert "cpu" in result.stderr  # the human-readable table goes to stderr

@@ -1,8 +1,11 @@
-// CPU rasteriser: tile-major loops (per 16x16 tile, triangles in depth order outside, the pixels of
-// each triangle's span inside, per-tile pixel state in small arrays). This order keeps the tile's
-// state in L1 and reads each triangle once per tile; it is ~2x faster than a per-pixel loop.
+// CPU rasteriser: tile-major loops (per 16x16 tile, triangles in depth order outside, the rows of
+// each triangle's box inside, per-tile pixel state in one small array per quantity). This order
+// keeps the tile's state in L1 and reads each triangle once per tile; it is ~2x faster than a
+// per-pixel loop. A row's pixels are evaluated together in SIMD lanes (lane_math.h).
 // Gradients are written per (tile, triangle) slot and summed per triangle in a fixed order, so
 // results are deterministic without atomics.
+#include "lane_math.h"  // first: it selects the vector instruction set of ATen/cpu/vec
+
 #include <torch/extension.h>
 
 #include <ATen/Parallel.h>
@@ -10,11 +13,12 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <string>
+#include <tuple>
 #include <vector>
 
 #include "bins.h"
 #include "cpu_ops.h"
-#include "pixel_io.h"
 #include "triangle_math.h"
 
 namespace {
@@ -46,91 +50,278 @@ inline bool pair_box(const Bins& b, int k, int tx0, int ty0, Box& box) {
   return box.x0 <= box.x1 && box.y0 <= box.y1;
 }
 
-// Narrows [x0, x1] to the pixels of row y where every edge function can reach the support
-// threshold. The exact test is per pixel, so the span only has to be a superset: each bound is
-// padded by 0.05 px plus a term for its rounding error, which grows with |b / a| (edges close to
-// horizontal). False if the row is empty.
-template <typename T>
-bool row_span(const T* p, const T inv_a[3], T y, int& x0, int& x1) {
-  T lo = T(x0), hi = T(x1);
-  for (int j = 0; j < 3; ++j) {
-    const T a = p[kLine + 3 * j], b = p[kLine + 3 * j + 1];
-    const T bound = (p[kParams - 1] - (b * y + p[kLine + 3 * j + 2])) * inv_a[j];
-    const T pad = T(0.05) + T(1e-4) * std::fabs(b * inv_a[j]);
-    if (a > T(0)) {
-      lo = std::max(lo, bound - pad);
-    } else if (a < T(0)) {
-      hi = std::min(hi, bound + pad);
+// Calls fn(i, x, y, in) for every run of lanes of a tile row that holds a pixel of the pair's box
+// among the live ones (bit x of live[y] set for tile pixel (x, y)): i is the run's first tile
+// pixel index, x the lanes' pixel columns, `in` the mask of the live pixels of the box.
+template <typename T, typename F>
+void for_each_run(const Box& box, int tx0, int ty0, const uint32_t* live, const F& fn) {
+  using V = Lanes<T>;
+  constexpr int kLanes = lane_count<T>();
+  const V lane = V::arange(T(0), T(1));
+  const uint32_t columns = (2u << (box.x1 - tx0)) - (1u << (box.x0 - tx0));
+  for (int y = box.y0; y <= box.y1; ++y) {
+    const uint32_t bits = live[y - ty0] & columns;
+    if (bits == 0) continue;
+    for (int lx0 = 0; lx0 < kTile; lx0 += kLanes) {
+      const uint32_t run = (bits >> lx0) & ((1u << kLanes) - 1u);
+      if (run == 0) continue;
+      const V x = V(T(tx0 + lx0)) + lane;
+      V in = V(T(0)) == V(T(0));
+      if (run != (1u << kLanes) - 1u) {
+        in = (x >= V(T(tx0 + lx0 + __builtin_ctz(run)))) &
+             (x <= V(T(tx0 + lx0 + 31 - __builtin_clz(run))));
+        // The lanes from the run's first to its last bit, less the holes between them (pixels
+        // saturated, or not joined yet in the backward pass), which are few.
+        const uint32_t span = (2u << (31 - __builtin_clz(run))) - (1u << __builtin_ctz(run));
+        for (uint32_t holes = span & ~run; holes != 0; holes &= holes - 1) {
+          in = and_not(in, x == V(T(tx0 + lx0 + __builtin_ctz(holes))));
+        }
+      }
+      fn((y - ty0) * kTile + lx0, x, T(y), in);
     }
   }
-  if (!(lo <= hi)) return false;
-  x0 = static_cast<int>(std::ceil(lo));
-  x1 = static_cast<int>(std::floor(hi));
-  return x0 <= x1;
 }
 
-// Calls fn(x, y, pixel_index_in_tile, window) for every contributing pixel of a (tile, triangle)
-// pair among the live ones (bit x of live[y] set for tile pixel (x, y)).
-template <typename T, typename F>
-void for_each_pixel(const T* p, const Box& box, int tx0, int ty0, const uint32_t* live,
-                    const F& fn) {
-  T inv_a[3];
-  for (int j = 0; j < 3; ++j) inv_a[j] = T(1) / p[kLine + 3 * j];  // inf for 0: unused then
-  for (int y = box.y0; y <= box.y1; ++y) {
-    uint32_t bits = live[y - ty0];
-    if (bits == 0) continue;
-    int x0 = box.x0, x1 = box.x1;
-    if (!row_span(p, inv_a, T(y), x0, x1)) continue;
-    bits &= (2u << (x1 - tx0)) - (1u << (x0 - tx0));
-    while (bits != 0) {
-      const int lx = __builtin_ctz(bits);
-      bits &= bits - 1;
-      Window<T> w;
-      if (eval_window(p, T(tx0 + lx), T(y), w)) fn(T(tx0 + lx), T(y), (y - ty0) * kTile + lx, w);
-    }
+constexpr int kPrefetchAhead = 2;  // entries
+
+// Starts loading the parameters of the tile's entry e (if any) into the cache: a tile reads its
+// triangles in depth order, scattered over the parameter array, and waiting for each one's
+// cache lines was the largest single cost of a pair.
+template <typename T>
+inline void prefetch_entry(const Bins& b, const T* params, int64_t e, int64_t end) {
+  if (e < 0 || e >= end) return;
+  const int64_t k = b.slot_tri[b.tile_slots[e]];
+  const char* first = reinterpret_cast<const char*>(params + k * kParams);
+  for (int byte = 0; byte < kParams * static_cast<int>(sizeof(T)); byte += 64) {
+    __builtin_prefetch(first + byte);
   }
+  __builtin_prefetch(first + kParams * sizeof(T) - 1);
 }
+
+// Calls fn(i) for every set bit i of mask, offset by base.
+template <typename F>
+inline void for_each_bit(uint32_t mask, int base, const F& fn) {
+  for (; mask != 0; mask &= mask - 1) fn(base + __builtin_ctz(mask));
+}
+
+// Forward compositing state of a tile's pixels, one array per quantity (PixelState of
+// triangle_math.h, laid out for lanes).
+template <typename T>
+struct TileState {
+  alignas(64) T transmittance[kTilePixels];
+  alignas(64) T rgb[3][kTilePixels];
+  alignas(64) T normal[3][kTilePixels];
+  alignas(64) T weight_sum[kTilePixels];
+  alignas(64) T depth_sum[kTilePixels];
+  alignas(64) T depth_shift[kTilePixels];
+  alignas(64) T shifted_sum[kTilePixels];
+  alignas(64) T shifted_sq[kTilePixels];
+  alignas(64) T median[kTilePixels];
+  alignas(64) T best_weight[kTilePixels];
+  int32_t median_entry[kTilePixels], last_entry[kTilePixels];
+  int64_t best[kTilePixels];
+
+  void reset() {
+    std::fill_n(transmittance, kTilePixels, T(1));
+    for (T* a : {rgb[0], rgb[1], rgb[2], normal[0], normal[1], normal[2], weight_sum, depth_sum,
+                 depth_shift, shifted_sum, shifted_sq, median, best_weight}) {
+      std::fill_n(a, kTilePixels, T(0));
+    }
+    std::fill_n(median_entry, kTilePixels, -1);
+    std::fill_n(last_entry, kTilePixels, -1);
+    std::fill_n(best, kTilePixels, int64_t{-1});
+  }
+
+  // PixelState::blend on the lanes from tile pixel i on: composites the pair where `w.hit`.
+  // Returns the lanes that saturate (not composited) and raises max_weight to the lanes' weights.
+  uint32_t blend(const T* p, const LaneWindow<T>& w, int i, int entry, int64_t triangle,
+                 Lanes<T>& max_weight) {
+    using V = Lanes<T>;
+    const V zero(T(0));
+    const V tr = V::loadu(transmittance + i);
+    const V next = tr * (V(T(1)) - w.alpha);
+    const V saturated = w.hit & (next < V(Thresholds<T>::transmittance_min));
+    const V on = and_not(w.hit, saturated);
+    const uint32_t on_bits = lane_bits<T>(on);
+    if (on_bits != 0) {
+      V colour[3], inv_depth;
+      eval_attributes(p, w, colour, inv_depth);
+      const V z = V(T(1)) / inv_depth;
+      const V weight = w.alpha * tr;
+      const auto add = [&](T* a, const V& v) {
+        const V old = V::loadu(a + i);
+        select(on, old + v, old).store(a + i);
+      };
+      for (int c = 0; c < 3; ++c) {
+        add(rgb[c], weight * colour[c]);
+        add(normal[c], weight * param(p, kNormal + c));
+      }
+      const V sum = V::loadu(weight_sum + i);
+      const V shift = select(on & (sum == zero), z, V::loadu(depth_shift + i));  // first pair
+      shift.store(depth_shift + i);
+      const V dz = z - shift;
+      add(shifted_sum, weight * dz);
+      add(shifted_sq, weight * dz * dz);
+      add(depth_sum, weight * z);
+      select(on, sum + weight, sum).store(weight_sum + i);
+      const V at_median = on & (tr > V(Thresholds<T>::median_transmittance));
+      select(at_median, z, V::loadu(median + i)).store(median + i);
+      for_each_bit(lane_bits<T>(at_median), i, [&](int k) { median_entry[k] = entry; });
+      const V best_so_far = V::loadu(best_weight + i);
+      const V better = on & (weight > best_so_far);
+      select(better, weight, best_so_far).store(best_weight + i);
+      for_each_bit(lane_bits<T>(better), i, [&](int k) { best[k] = triangle; });
+      select(on, next, tr).store(transmittance + i);
+      for_each_bit(on_bits, i, [&](int k) { last_entry[k] = entry; });
+      max_weight = at::vec::maximum(max_weight, select(on, weight, zero));
+    }
+    return lane_bits<T>(saturated);
+  }
+
+  // PixelState::distortion of tile pixel i.
+  T distortion(int i) const {
+    const T d = weight_sum[i] * shifted_sq[i] - shifted_sum[i] * shifted_sum[i];
+    return d > T(0) ? d : T(0);
+  }
+};
 
 template <typename T>
 void forward_tile(int tile, const Bins& b, const T* params, T* rgb, T* depth, T* alpha, T* normal,
                   T* median, T* distortion, int64_t* dominant, T* transmittance,
                   int32_t* last_entry, int32_t* median_entry, T* slot_max_weight) {
+  using V = Lanes<T>;
   const int tx0 = (tile % b.tiles_x) * kTile, ty0 = (tile / b.tiles_x) * kTile;
   const int tw = std::min(kTile, b.width - tx0), th = std::min(kTile, b.height - ty0);
-  PixelState<T> px[kTilePixels];
-  for (auto& s : px) s.reset();
+  TileState<T> s;
+  s.reset();
   uint32_t live[kTile];
   for (int y = 0; y < kTile; ++y) live[y] = y < th ? (1u << tw) - 1 : 0u;
   int active = tw * th;
   for (int64_t e = b.tile_offsets[tile]; e < b.tile_offsets[tile + 1] && active > 0; ++e) {
     const int32_t slot = b.tile_slots[e];
     const int k = b.slot_tri[slot];
+    prefetch_entry(b, params, e + kPrefetchAhead, b.tile_offsets[tile + 1]);
     Box box;
     if (!pair_box(b, k, tx0, ty0, box)) continue;
-    // Local copies: the compiler cannot keep parameters and accumulators in registers when they
-    // might alias the output arrays.
-    T p[kParams];
-    std::copy(params + static_cast<int64_t>(k) * kParams, params + (k + 1) * int64_t{kParams}, p);
-    T max_weight = T(0);
-    for_each_pixel(p, box, tx0, ty0, live, [&](T, T, int i, const Window<T>& w) {
-      const T weight = px[i].blend(p, w, static_cast<int>(e), k);
-      if (weight < T(0)) {
-        live[i / kTile] &= ~(1u << (i % kTile));
-        --active;
-      } else {
-        max_weight = std::max(max_weight, weight);
+    const T* p = params + static_cast<int64_t>(k) * kParams;
+    V max_weight(T(0));
+    for_each_run<T>(box, tx0, ty0, live, [&](int i, const V& x, T y, const V& in) {
+      const LaneWindow<T> w = eval_window(p, x, y, in);
+      if (lane_bits<T>(w.hit) == 0) return;
+      const uint32_t saturated = s.blend(p, w, i, static_cast<int>(e), k, max_weight);
+      if (saturated != 0) {
+        live[i / kTile] &= ~(saturated << (i % kTile));
+        active -= __builtin_popcount(saturated);
       }
     });
-    slot_max_weight[slot] = max_weight;
+    slot_max_weight[slot] = at::vec::vec_reduce_all<T>(
+        [](const V& a, const V& c) { return at::vec::maximum(a, c); }, max_weight);
   }
   for (int y = 0; y < th; ++y) {
     for (int x = 0; x < tw; ++x) {
+      const int i = y * kTile + x;
       const int64_t o = static_cast<int64_t>(ty0 + y) * b.width + (tx0 + x);
-      write_pixel(px[y * kTile + x], o, rgb, depth, alpha, normal, median, distortion, dominant,
-                  transmittance, last_entry, median_entry);
+      for (int c = 0; c < 3; ++c) {
+        rgb[3 * o + c] = s.rgb[c][i];
+        normal[3 * o + c] = s.normal[c][i];
+      }
+      depth[o] = s.depth_sum[i];
+      alpha[o] = s.weight_sum[i];
+      median[o] = s.median[i];
+      distortion[o] = s.distortion(i);
+      dominant[o] = s.best[i];
+      transmittance[o] = s.transmittance[i];
+      last_entry[o] = s.last_entry[i];
+      median_entry[o] = s.median_entry[i];
     }
   }
 }
+
+// Backward state of a tile's pixels, one array per quantity (PixelGrad of triangle_math.h, laid
+// out for lanes).
+template <typename T>
+struct TileGrads {
+  alignas(64) T d_rgb[3][kTilePixels];
+  alignas(64) T d_normal[3][kTilePixels];
+  alignas(64) T d_depth[kTilePixels];
+  alignas(64) T d_alpha[kTilePixels];
+  alignas(64) T d_distortion[kTilePixels];
+  alignas(64) T d_median_here[kTilePixels];  // d_median at the pixel's median entry, else 0
+  alignas(64) T weight_sum[kTilePixels];
+  alignas(64) T depth_mean[kTilePixels];
+  alignas(64) T depth_m2[kTilePixels];
+  alignas(64) T transmittance[kTilePixels];
+  alignas(64) T suffix[kTilePixels];
+  T d_median[kTilePixels];
+  int32_t median_entry[kTilePixels], last_entry[kTilePixels];
+
+  // read_pixel of pixel_io.h into tile pixel i.
+  void read(int i, int64_t o, const T* alpha, const T* depth, const T* distortion,
+            const T* transmittance_in, const int32_t* last_entry_in,
+            const int32_t* median_entry_in, const T* d_rgb_in, const T* d_depth_in,
+            const T* d_alpha_in, const T* d_normal_in, const T* d_median_in,
+            const T* d_distortion_in) {
+    for (int c = 0; c < 3; ++c) {
+      d_rgb[c][i] = d_rgb_in[3 * o + c];
+      d_normal[c][i] = d_normal_in[3 * o + c];
+    }
+    d_depth[i] = d_depth_in[o];
+    d_alpha[i] = d_alpha_in[o];
+    d_median[i] = d_median_in[o];
+    d_median_here[i] = T(0);
+    d_distortion[i] = d_distortion_in[o];
+    weight_sum[i] = alpha[o];
+    const bool hit = alpha[o] > T(0);
+    depth_mean[i] = hit ? depth[o] / alpha[o] : T(0);
+    depth_m2[i] = hit ? distortion[o] / alpha[o] : T(0);
+    transmittance[i] = transmittance_in[o];
+    suffix[i] = T(0);
+    median_entry[i] = median_entry_in[o];
+    last_entry[i] = last_entry_in[o];
+  }
+
+  void clear(int i) {
+    for (T* a : {d_rgb[0], d_rgb[1], d_rgb[2], d_normal[0], d_normal[1], d_normal[2], d_depth,
+                 d_alpha, d_distortion, d_median_here, weight_sum, depth_mean, depth_m2, suffix}) {
+      a[i] = T(0);
+    }
+    d_median[i] = T(0);
+    transmittance[i] = T(1);
+    median_entry[i] = last_entry[i] = -1;
+  }
+
+  // PixelGrad::unblend on the lanes from tile pixel i on, where `w.hit`.
+  void unblend(const T* p, const Lanes<T>& x, T y, const LaneWindow<T>& w, int i,
+               LaneGrads<T>& acc) {
+    using V = Lanes<T>;
+    const V zero(T(0));
+    const auto at = [&](const T* a) { return V::loadu(a + i); };
+    const V alpha = select(w.hit, w.alpha, zero);
+    const V keep = V(T(1)) / (V(T(1)) - alpha);
+    const V tr = at(transmittance) * keep;  // unchanged (x 1) outside the hit lanes
+    tr.store(transmittance + i);
+    V colour[3], inv_depth;
+    eval_attributes(p, w, colour, inv_depth);
+    const V z = select(w.hit, V(T(1)) / inv_depth, zero);
+    const V weight = alpha * tr;
+    const V sum = at(weight_sum), d_dist = at(d_distortion);
+    const V dz_mean = z - at(depth_mean);
+    V d_weight = at(d_depth) * z + at(d_alpha) + d_dist * (at(depth_m2) + sum * dz_mean * dz_mean);
+    V d_colour[3], d_normal_pair[3];
+    for (int c = 0; c < 3; ++c) {
+      const V dr = at(d_rgb[c]), dn = at(d_normal[c]);
+      d_weight = d_weight + (dr * colour[c] + dn * param(p, kNormal + c));
+      d_colour[c] = weight * dr;
+      d_normal_pair[c] = weight * dn;
+    }
+    const V old_suffix = at(suffix);
+    const V d_alpha_pair = select(w.hit, tr * d_weight - old_suffix * keep, zero);
+    (old_suffix + weight * d_weight).store(suffix + i);
+    const V d_z = weight * at(d_depth) + d_dist * V(T(2)) * weight * sum * dz_mean +
+                  at(d_median_here);
+    pair_backward(p, x, y, w, z, d_alpha_pair, d_colour, d_z, d_normal_pair, acc);
+  }
+};
 
 template <typename T>
 void backward_tile(int tile, const Bins& b, const T* params, const T* alpha, const T* depth,
@@ -138,43 +329,56 @@ void backward_tile(int tile, const Bins& b, const T* params, const T* alpha, con
                    const int32_t* median_entry, const T* d_rgb, const T* d_depth,
                    const T* d_alpha, const T* d_normal, const T* d_median,
                    const T* d_distortion, T* slot_grads) {
+  using V = Lanes<T>;
   const int tx0 = (tile % b.tiles_x) * kTile, ty0 = (tile / b.tiles_x) * kTile;
   const int tw = std::min(kTile, b.width - tx0), th = std::min(kTile, b.height - ty0);
-  PixelGrad<T> px[kTilePixels];
+  TileGrads<T> px;
   for (int y = 0; y < kTile; ++y) {
     for (int x = 0; x < kTile; ++x) {
-      PixelGrad<T>& g = px[y * kTile + x];
+      const int i = y * kTile + x;
       if (y >= th || x >= tw) {
-        g.last_entry = -1;
+        px.clear(i);
         continue;
       }
       const int64_t o = static_cast<int64_t>(ty0 + y) * b.width + (tx0 + x);
-      read_pixel(g, o, alpha, depth, distortion, transmittance, last_entry, median_entry, d_rgb,
-                 d_depth, d_alpha, d_normal, d_median, d_distortion);
+      px.read(i, o, alpha, depth, distortion, transmittance, last_entry, median_entry, d_rgb,
+              d_depth, d_alpha, d_normal, d_median, d_distortion);
     }
   }
-  // Pixels join the back-to-front sweep at their last composited entry: visit them in that order.
-  int order[kTilePixels];
-  for (int i = 0; i < kTilePixels; ++i) order[i] = i;
-  std::sort(order, order + kTilePixels,
-            [&](int a, int c) { return px[a].last_entry > px[c].last_entry; });
+  // Pixels join the back-to-front sweep at their last composited entry, and take d_median at
+  // their median entry: visit them in those orders.
+  int joins[kTilePixels], medians[kTilePixels];
+  for (int i = 0; i < kTilePixels; ++i) joins[i] = medians[i] = i;
+  std::sort(joins, joins + kTilePixels,
+            [&](int a, int c) { return px.last_entry[a] > px.last_entry[c]; });
+  std::sort(medians, medians + kTilePixels,
+            [&](int a, int c) { return px.median_entry[a] > px.median_entry[c]; });
   uint32_t live[kTile] = {};
-  int joined = 0;
+  int joined = 0, median_next = 0;
+  LaneGrads<T> acc;
   for (int64_t e = b.tile_offsets[tile + 1] - 1; e >= b.tile_offsets[tile]; --e) {
     const int32_t slot = b.tile_slots[e];
     T g[kGrads] = {};
-    for (; joined < kTilePixels && px[order[joined]].last_entry >= e; ++joined) {
-      live[order[joined] / kTile] |= 1u << (order[joined] % kTile);
+    for (; joined < kTilePixels && px.last_entry[joins[joined]] >= e; ++joined) {
+      live[joins[joined] / kTile] |= 1u << (joins[joined] % kTile);
+    }
+    const int median_first = median_next;
+    for (; median_next < kTilePixels && px.median_entry[medians[median_next]] == e; ++median_next) {
+      px.d_median_here[medians[median_next]] = px.d_median[medians[median_next]];
     }
     const int k = b.slot_tri[slot];
+    prefetch_entry(b, params, e - kPrefetchAhead, b.tile_offsets[tile + 1]);
     Box box;
     if (joined > 0 && pair_box(b, k, tx0, ty0, box)) {
-      T p[kParams];
-      std::copy(params + static_cast<int64_t>(k) * kParams, params + (k + 1) * int64_t{kParams}, p);
-      for_each_pixel(p, box, tx0, ty0, live, [&](T x, T y, int i, const Window<T>& w) {
-        px[i].unblend(p, x, y, w, static_cast<int>(e), g);
+      const T* p = params + static_cast<int64_t>(k) * kParams;
+      acc.reset();
+      for_each_run<T>(box, tx0, ty0, live, [&](int i, const V& x, T y, const V& in) {
+        const LaneWindow<T> w = eval_window(p, x, y, in);
+        if (lane_bits<T>(w.hit) != 0) px.unblend(p, x, y, w, i, acc);
       });
+      acc.sum_into(g);
     }
+    for (int m = median_first; m < median_next; ++m) px.d_median_here[medians[m]] = T(0);
     std::copy(g, g + kGrads, slot_grads + static_cast<int64_t>(slot) * kGrads);
   }
 }
@@ -323,6 +527,9 @@ std::vector<torch::Tensor> bin_triangles(const torch::Tensor& bounds, int64_t wi
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("forward", &forward, "triangle rasteriser forward (CPU)");
   m.def("backward", &backward, "triangle rasteriser backward (CPU)");
+  m.def(
+      "simd", [] { return std::make_tuple(std::string(lane_instruction_set()), lane_count<float>()); },
+      "vector instruction set of the kernel and its float lanes per vector");
   m.def("bin_triangles", &bin_triangles, "tile binning by counting sort (CPU)");
   m.def("setup_cull", &lts_cpu::setup_cull, "visibility and depth key per face (CPU)");
   m.def("setup_forward", &lts_cpu::setup_forward, "per-triangle kernel parameters (CPU)");

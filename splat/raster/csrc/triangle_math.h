@@ -1,8 +1,10 @@
-// Per-(pixel, triangle) maths of the triangle rasteriser, shared by the CPU and CUDA kernels.
+// Per-(pixel, triangle) maths of the triangle rasteriser: the parameter layout and thresholds
+// both kernels share, and the per-pixel form the CUDA kernel runs (the CPU kernel runs the same
+// operations over a row of pixels in SIMD lanes: lane_math.h).
 //
 // The kernels are hand-written because no library rasterises triangle *windows* (soft,
 // sigma-sharpened edge functions) with the outputs and backward pass we need; the loop structure
-// differs per target (tile-major on the CPU, pixel-per-thread on the GPU), the maths here does not.
+// differs per target (tile-major on the CPU, pixel-per-thread on the GPU), the maths does not.
 //
 // A triangle arrives pre-processed (splat/raster/project.py) as kParams numbers:
 //   [0, 9)   three normalised edge functions l_j(x, y) = a_j x + b_j y + d_j; l_j = 1 at the
