@@ -79,11 +79,21 @@ def ssim_map(rendered: Tensor, target: Tensor) -> Tensor:
     return (numerator / (denominator + 1e-12))[0].permute(1, 2, 0)
 
 
+def masked_mean(values: Tensor, mask: Tensor) -> Tensor:
+    """Mean of ``values`` ``(*S, ...)`` over the entries where ``mask`` ``(*S)`` bool is True
+    (``values[mask].mean()``; ``mask`` must hold one at least), as sums over the whole tensor:
+    indexing with a mask (a search for its pixels, a gather, and a scatter in the backward pass)
+    took ~3 ms of an iteration's loss at 320x240."""
+    extra = values.dim() - mask.dim()
+    selected = torch.where(mask.view(*mask.shape, *([1] * extra)), values, 0.0)
+    return selected.sum() / (mask.sum() * (values.numel() // mask.numel()))
+
+
 def dssim(rendered: Tensor, target: Tensor, keep: Tensor | None = None) -> Tensor:
     """``1 - SSIM`` (:func:`ssim_map`; mean over pixels, those where ``keep`` ``(H, W)`` bool is
     True when given) of two ``(H, W, 3)`` images in [0, 1]."""
     values = ssim_map(rendered, target)
-    return 1.0 - (values.mean() if keep is None else values[keep].mean())
+    return 1.0 - (values.mean() if keep is None else masked_mean(values, keep))
 
 
 def accumulated_depth_l1(out: RenderOutput, lidar_depth: Tensor, reference_m: float = math.inf) -> Tensor:
@@ -95,9 +105,8 @@ def accumulated_depth_l1(out: RenderOutput, lidar_depth: Tensor, reference_m: fl
     valid = lidar_depth > 0
     if not bool(valid.any()):
         return out.accumulated_depth.new_zeros(())
-    target = lidar_depth[valid]
-    error = (out.accumulated_depth[valid] - target).abs()
-    return (error / (target / reference_m).clamp(min=1.0)).mean()
+    error = (out.accumulated_depth - lidar_depth).abs()
+    return masked_mean(error / (lidar_depth / reference_m).clamp(min=1.0), valid)
 
 
 def normal_loss(out: RenderOutput, prior: Tensor) -> Tensor:
@@ -106,9 +115,8 @@ def normal_loss(out: RenderOutput, prior: Tensor) -> Tensor:
     valid = (prior.abs().sum(dim=-1) > 0) & (out.alpha.detach() > 1e-3)
     if not bool(valid.any()):
         return out.alpha.new_zeros(())
-    n = out.normal[valid]
-    n = n / n.norm(dim=-1, keepdim=True).clamp(min=1e-8)
-    return (1.0 - (n * prior[valid]).sum(dim=-1)).mean()
+    n = out.normal / out.normal.norm(dim=-1, keepdim=True).clamp(min=1e-8)
+    return masked_mean(1.0 - (n * prior).sum(dim=-1), valid)
 
 
 def training_loss(
@@ -135,7 +143,7 @@ def training_loss(
     zero = image.new_zeros(())
     keep = None if moving_mask is None or not bool(moving_mask.any()) else ~moving_mask
     error = (out.rgb - image).abs()
-    l1 = error.mean() if keep is None else error[keep].mean()
+    l1 = error.mean() if keep is None else masked_mean(error, keep)
     ds = dssim(out.rgb, image, keep) if config.lambda_dssim > 0 else zero
     depth = (
         accumulated_depth_l1(out, lidar_depth, config.depth_reference_m)
@@ -144,7 +152,7 @@ def training_loss(
     )
     normal = normal_loss(out, normal_prior) if normal_prior is not None and config.w_normal > 0 else zero
     in_view = out.max_weight > 0
-    opacity_reg = opacity[in_view].mean() if config.w_opacity > 0 and bool(in_view.any()) else zero
+    opacity_reg = masked_mean(opacity, in_view) if config.w_opacity > 0 and bool(in_view.any()) else zero
     distortion = out.distortion.mean() if config.w_distortion > 0 else zero
     total = (
         (1 - config.lambda_dssim) * l1

@@ -6,7 +6,7 @@ import kornia
 import pytest
 import torch
 
-from splat.losses import dssim, ssim_map
+from splat.losses import dssim, masked_mean, ssim_map
 
 
 @pytest.mark.parametrize(("height", "width"), [(24, 32), (61, 47)])
@@ -36,5 +36,19 @@ def test_dssim_of_an_image_with_itself_is_zero_and_keep_selects_pixels():
     keep = torch.zeros(20, 30, dtype=torch.bool)
     keep[:, :15] = True
     expected = 1 - ssim_map(noisy, image)[keep].mean()
-    assert float(dssim(noisy, image, keep)) == pytest.approx(float(expected))
+    # The same mean, summed in another order (float32).
+    assert float(dssim(noisy, image, keep)) == pytest.approx(float(expected), rel=1e-5)
     assert float(dssim(noisy, image, keep)) != pytest.approx(float(dssim(noisy, image)))
+
+
+@pytest.mark.parametrize("shape", [(7, 9, 3), (7, 9), (50,)])
+def test_masked_mean_is_the_mean_of_the_selected_entries_with_its_gradient(shape):
+    generator = torch.Generator().manual_seed(3)
+    values = torch.randn(*shape, generator=generator, dtype=torch.float64)
+    mask = torch.rand(*shape[: 2 if len(shape) > 1 else 1], generator=generator) > 0.6
+    ours, theirs = values.clone().requires_grad_(), values.clone().requires_grad_()
+    result, expected = masked_mean(ours, mask), theirs[mask].mean()
+    torch.testing.assert_close(result, expected, rtol=1e-12, atol=0)
+    result.backward()
+    expected.backward()
+    torch.testing.assert_close(ours.grad, theirs.grad, rtol=0, atol=1e-15)
