@@ -100,21 +100,12 @@ LTS_HD bool visible(const View<T>& v, const T* const world[3], T opacity, T sigm
   for (int i = 0; i < 3; ++i) {
     if (!(pr.P[i][2] > v.near)) return false;
   }
-  Sides<T> s;
-  sides(pr, s);
   // Projections that overflow (float32 with a vertex grazing the near plane, extreme focal
   // lengths) turn into inf - inf = NaN further on: such a triangle cannot be drawn meaningfully.
   for (int i = 0; i < 3; ++i) {
     if (!isfinite(pr.q[i][0]) || !isfinite(pr.q[i][1])) return false;
   }
-  if (!isfinite(s.twice_area)) return false;
-  if (!(fabs(s.twice_area) / s.perimeter >= T(kMinInradiusPx))) return false;
-  T N[3], g[3];
-  face_normal(pr, N);
-  for (int r = 0; r < 3; ++r) g[r] = (pr.P[0][r] + pr.P[1][r] + pr.P[2][r]) / T(3);
-  const T n_len = safe_length(N);
-  const T g_len = safe_length(g);
-  if (!(fabs(N[0] * g[0] + N[1] * g[1] + N[2] * g[2]) >= T(kEdgeOnCos) * n_len * g_len)) return false;
+  // The cheap tests first: most faces of a scene lie outside any one view.
   T lo[2] = {pr.q[0][0], pr.q[0][1]}, hi[2] = {pr.q[0][0], pr.q[0][1]};
   for (int i = 1; i < 3; ++i) {
     for (int a = 0; a < 2; ++a) {
@@ -123,8 +114,20 @@ LTS_HD bool visible(const View<T>& v, const T* const world[3], T opacity, T sigm
     }
   }
   const T pad = T(kBoxPadPx);
-  return hi[0] >= -pad && lo[0] <= T(v.width - 1) + pad && hi[1] >= -pad &&
-         lo[1] <= T(v.height - 1) + pad && opacity >= Thresholds<T>::alpha_min && sigma > T(0);
+  if (!(hi[0] >= -pad && lo[0] <= T(v.width - 1) + pad && hi[1] >= -pad &&
+        lo[1] <= T(v.height - 1) + pad && opacity >= Thresholds<T>::alpha_min && sigma > T(0))) {
+    return false;
+  }
+  Sides<T> s;
+  sides(pr, s);
+  if (!isfinite(s.twice_area)) return false;
+  if (!(fabs(s.twice_area) / s.perimeter >= T(kMinInradiusPx))) return false;
+  T N[3], g[3];
+  face_normal(pr, N);
+  for (int r = 0; r < 3; ++r) g[r] = (pr.P[0][r] + pr.P[1][r] + pr.P[2][r]) / T(3);
+  const T n_len = safe_length(N);
+  const T g_len = safe_length(g);
+  return fabs(N[0] * g[0] + N[1] * g[1] + N[2] * g[2]) >= T(kEdgeOnCos) * n_len * g_len;
 }
 
 // Kernel parameters (kParams, layout in triangle_math.h) and the inclusive pixel box of the
