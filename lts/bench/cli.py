@@ -163,7 +163,8 @@ def bench_raster(
         console.print(f"  {backend}: {x:.1f}x faster than the reference", highlight=False)
     if "cpu_simd" in result:
         simd = result["cpu_simd"]
-        console.print(f"  cpu kernel: {simd['instruction_set']}, {simd['float_lanes']} float lanes", highlight=False)
+        lanes = f"{simd['instruction_set']}, {simd['float_lanes']} float lanes"
+        console.print(f"  cpu kernel: {lanes}", highlight=False)
     if json_out:
         emit_json(result)
 

@@ -14,7 +14,8 @@ from types import ModuleType
 
 CSRC = Path(__file__).parent / "csrc"
 HEADERS = [
-    CSRC / name for name in ("triangle_math.h", "lane_math.h", "triangle_setup.h", "bins.h", "cpu_ops.h", "pixel_io.h")
+    CSRC / name
+    for name in ("triangle_math.h", "lane_math.h", "triangle_setup.h", "bins.h", "cpu_ops.h", "pixel_io.h")
 ]
 # -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
 # kernel's skip/stop decisions match the reference exactly. -fopenmp: at::parallel_for is inline
