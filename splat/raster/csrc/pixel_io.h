@@ -1,4 +1,4 @@
-// Per-pixel image I/O of the CUDA rasteriser (the CPU kernel reads whole tiles): what the
+// Per-pixel image I/O of the triangle rasteriser, shared by the CPU and CUDA kernels: what the
 // forward pass writes for a pixel, and what the backward pass reads back for it (the forward
 // outputs and the upstream gradients). `o` is the pixel's row-major index y * width + x.
 #pragma once

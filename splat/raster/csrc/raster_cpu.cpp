@@ -19,6 +19,7 @@
 
 #include "bins.h"
 #include "cpu_ops.h"
+#include "pixel_io.h"
 #include "triangle_math.h"
 
 namespace {
@@ -121,15 +122,51 @@ struct TileState {
   int32_t median_entry[kTilePixels], last_entry[kTilePixels];
   int64_t best[kTilePixels];
 
+  // Every pixel in PixelState's starting state.
   void reset() {
-    std::fill_n(transmittance, kTilePixels, T(1));
-    for (T* a : {rgb[0], rgb[1], rgb[2], normal[0], normal[1], normal[2], weight_sum, depth_sum,
-                 depth_shift, shifted_sum, shifted_sq, median, best_weight}) {
-      std::fill_n(a, kTilePixels, T(0));
+    PixelState<T> fresh;
+    fresh.reset();
+    for (int i = 0; i < kTilePixels; ++i) store(i, fresh);
+  }
+
+  void store(int i, const PixelState<T>& p) {
+    transmittance[i] = p.transmittance;
+    for (int c = 0; c < 3; ++c) {
+      rgb[c][i] = p.rgb[c];
+      normal[c][i] = p.normal[c];
     }
-    std::fill_n(median_entry, kTilePixels, -1);
-    std::fill_n(last_entry, kTilePixels, -1);
-    std::fill_n(best, kTilePixels, int64_t{-1});
+    weight_sum[i] = p.weight_sum;
+    depth_sum[i] = p.depth_sum;
+    depth_shift[i] = p.depth_shift;
+    shifted_sum[i] = p.shifted_sum;
+    shifted_sq[i] = p.shifted_sq;
+    median[i] = p.median;
+    best_weight[i] = p.best_weight;
+    median_entry[i] = p.median_entry;
+    last_entry[i] = p.last_entry;
+    best[i] = p.best;
+  }
+
+  // Tile pixel i as a PixelState, for write_pixel of pixel_io.h.
+  PixelState<T> load(int i) const {
+    PixelState<T> p;
+    p.transmittance = transmittance[i];
+    for (int c = 0; c < 3; ++c) {
+      p.rgb[c] = rgb[c][i];
+      p.normal[c] = normal[c][i];
+    }
+    p.weight_sum = weight_sum[i];
+    p.depth_sum = depth_sum[i];
+    p.depth_shift = depth_shift[i];
+    p.shifted_sum = shifted_sum[i];
+    p.shifted_sq = shifted_sq[i];
+    p.median = median[i];
+    p.best_weight = best_weight[i];
+    p.median_entry = median_entry[i];
+    p.last_entry = last_entry[i];
+    p.best = best[i];
+    p.done = false;
+    return p;
   }
 
   // PixelState::blend on the lanes from tile pixel i on: composites the pair where `w.hit`.
@@ -177,12 +214,6 @@ struct TileState {
     }
     return lane_bits<T>(saturated);
   }
-
-  // PixelState::distortion of tile pixel i.
-  T distortion(int i) const {
-    const T d = weight_sum[i] * shifted_sq[i] - shifted_sum[i] * shifted_sum[i];
-    return d > T(0) ? d : T(0);
-  }
 };
 
 template <typename T>
@@ -219,20 +250,9 @@ void forward_tile(int tile, const Bins& b, const T* params, T* rgb, T* depth, T*
   }
   for (int y = 0; y < th; ++y) {
     for (int x = 0; x < tw; ++x) {
-      const int i = y * kTile + x;
       const int64_t o = static_cast<int64_t>(ty0 + y) * b.width + (tx0 + x);
-      for (int c = 0; c < 3; ++c) {
-        rgb[3 * o + c] = s.rgb[c][i];
-        normal[3 * o + c] = s.normal[c][i];
-      }
-      depth[o] = s.depth_sum[i];
-      alpha[o] = s.weight_sum[i];
-      median[o] = s.median[i];
-      distortion[o] = s.distortion(i);
-      dominant[o] = s.best[i];
-      transmittance[o] = s.transmittance[i];
-      last_entry[o] = s.last_entry[i];
-      median_entry[o] = s.median_entry[i];
+      write_pixel(s.load(y * kTile + x), o, rgb, depth, alpha, normal, median, distortion, dominant,
+                  transmittance, last_entry, median_entry);
     }
   }
 }
@@ -255,39 +275,24 @@ struct TileGrads {
   T d_median[kTilePixels];
   int32_t median_entry[kTilePixels], last_entry[kTilePixels];
 
-  // read_pixel of pixel_io.h into tile pixel i.
-  void read(int i, int64_t o, const T* alpha, const T* depth, const T* distortion,
-            const T* transmittance_in, const int32_t* last_entry_in,
-            const int32_t* median_entry_in, const T* d_rgb_in, const T* d_depth_in,
-            const T* d_alpha_in, const T* d_normal_in, const T* d_median_in,
-            const T* d_distortion_in) {
+  // Stores a pixel's state (read_pixel of pixel_io.h) as tile pixel i.
+  void store(int i, const PixelGrad<T>& g) {
     for (int c = 0; c < 3; ++c) {
-      d_rgb[c][i] = d_rgb_in[3 * o + c];
-      d_normal[c][i] = d_normal_in[3 * o + c];
+      d_rgb[c][i] = g.d_rgb[c];
+      d_normal[c][i] = g.d_normal[c];
     }
-    d_depth[i] = d_depth_in[o];
-    d_alpha[i] = d_alpha_in[o];
-    d_median[i] = d_median_in[o];
+    d_depth[i] = g.d_depth;
+    d_alpha[i] = g.d_alpha;
+    d_median[i] = g.d_median;
     d_median_here[i] = T(0);
-    d_distortion[i] = d_distortion_in[o];
-    weight_sum[i] = alpha[o];
-    const bool hit = alpha[o] > T(0);
-    depth_mean[i] = hit ? depth[o] / alpha[o] : T(0);
-    depth_m2[i] = hit ? distortion[o] / alpha[o] : T(0);
-    transmittance[i] = transmittance_in[o];
-    suffix[i] = T(0);
-    median_entry[i] = median_entry_in[o];
-    last_entry[i] = last_entry_in[o];
-  }
-
-  void clear(int i) {
-    for (T* a : {d_rgb[0], d_rgb[1], d_rgb[2], d_normal[0], d_normal[1], d_normal[2], d_depth,
-                 d_alpha, d_distortion, d_median_here, weight_sum, depth_mean, depth_m2, suffix}) {
-      a[i] = T(0);
-    }
-    d_median[i] = T(0);
-    transmittance[i] = T(1);
-    median_entry[i] = last_entry[i] = -1;
+    d_distortion[i] = g.d_distortion;
+    weight_sum[i] = g.weight_sum;
+    depth_mean[i] = g.depth_mean;
+    depth_m2[i] = g.depth_m2;
+    transmittance[i] = g.transmittance;
+    suffix[i] = g.suffix;
+    median_entry[i] = g.median_entry;
+    last_entry[i] = g.last_entry;
   }
 
   // PixelGrad::unblend on the lanes from tile pixel i on, where `w.hit`.
@@ -335,14 +340,17 @@ void backward_tile(int tile, const Bins& b, const T* params, const T* alpha, con
   TileGrads<T> px;
   for (int y = 0; y < kTile; ++y) {
     for (int x = 0; x < kTile; ++x) {
-      const int i = y * kTile + x;
-      if (y >= th || x >= tw) {
-        px.clear(i);
-        continue;
+      // Pixels outside the image never join the sweep, but their lanes are computed with the
+      // others' (and masked): zeros keep them finite.
+      PixelGrad<T> g{};
+      g.transmittance = T(1);
+      g.median_entry = g.last_entry = -1;
+      if (y < th && x < tw) {
+        const int64_t o = static_cast<int64_t>(ty0 + y) * b.width + (tx0 + x);
+        read_pixel(g, o, alpha, depth, distortion, transmittance, last_entry, median_entry, d_rgb,
+                   d_depth, d_alpha, d_normal, d_median, d_distortion);
       }
-      const int64_t o = static_cast<int64_t>(ty0 + y) * b.width + (tx0 + x);
-      px.read(i, o, alpha, depth, distortion, transmittance, last_entry, median_entry, d_rgb,
-              d_depth, d_alpha, d_normal, d_median, d_distortion);
+      px.store(y * kTile + x, g);
     }
   }
   // Pixels join the back-to-front sweep at their last composited entry, and take d_median at
