@@ -53,8 +53,9 @@ Progress = Callable[[str, int, int], None]
 @dataclass(frozen=True)
 class MatchingReport:
     """What matching did: keyframes, their mean keypoint count, the pairs matched and those that
-    kept matches, the matches, and the seconds spent extracting features, choosing the pairs and
-    matching them."""
+    kept matches, the matches, and the seconds spent extracting features (once per database, however
+    often it is matched), choosing the pairs and matching them (with the mesh depth at the
+    keypoints)."""
 
     keyframes: int
     keypoints_mean: float
@@ -79,26 +80,30 @@ def colmap_camera_params(camera: CameraModel) -> list[float]:
     return [camera.fx, camera.fy, camera.cx + COLMAP_PIXEL_OFFSET, camera.cy + COLMAP_PIXEL_OFFSET]
 
 
-def match_keyframes(
+@dataclass(frozen=True)
+class KeyframeDatabase:
+    """A COLMAP database at ``path`` holding the SIFT features of the keyframe images ``names``
+    (in time order) under ``image_ids``, extracted in ``extraction_s`` seconds; matching writes
+    into it (:func:`match_keyframes`), as often as the poses change."""
+
+    path: Path
+    names: list[str]
+    image_ids: list[int]
+    extraction_s: float
+
+
+def extract_keyframe_features(
     images_dir: Path,
     workspace: Path,
     camera: CameraModel,
     names: list[str],
-    poses: np.ndarray,
-    raycaster: Any,
     progress: Progress | None = None,
     threads: int | None = None,
-    tolerance_deg: float = TOLERANCE_DEG,
-) -> tuple[Path, MatchingReport]:
-    """Extract SIFT features of ``images_dir/NAME`` for each of ``names`` (keyframes in time order,
-    at ``poses`` ``(N, 4, 4)`` ``T_world_cam``), match the pairs that see the same surface of the
-    mesh in ``raycaster`` (:func:`~slam_bridge.keyframe_pairs.keyframe_pairs`) and write them to a
-    COLMAP database in ``workspace``; returns the database and a report.
-
-    ``camera`` is the distortion-free pinhole camera of the images, shared by all of them;
-    ``threads``: how many to extract and match with (default: every core; the result is the same);
-    ``tolerance_deg``: how far from the poses' geometry a match may lie.
-    """
+) -> KeyframeDatabase:
+    """A new COLMAP database in ``workspace`` with the SIFT features of ``images_dir/NAME`` for
+    each of ``names`` (keyframes in time order); ``camera`` is the distortion-free pinhole camera
+    of the images, shared by all of them; ``threads``: how many to extract with (default: every
+    core; the features are the same)."""
     quiet_colmap_log()
     threads = threads or os.cpu_count() or 1
     workspace.mkdir(parents=True, exist_ok=True)
@@ -107,10 +112,31 @@ def match_keyframes(
     started = time.perf_counter()
     image_ids = _new_database(database, camera, names)
     _extract_features(database, images_dir, camera, names, threads, progress)
-    features = _read_features(database, image_ids, poses, camera, raycaster)
-    extracted = time.perf_counter()
+    return KeyframeDatabase(database, list(names), image_ids, time.perf_counter() - started)
+
+
+def match_keyframes(
+    database: KeyframeDatabase,
+    camera: CameraModel,
+    poses: np.ndarray,
+    raycaster: Any,
+    progress: Progress | None = None,
+    threads: int | None = None,
+    tolerance_deg: float = TOLERANCE_DEG,
+) -> MatchingReport:
+    """Match the keyframes of ``database`` at ``poses`` ``(N, 4, 4)`` ``T_world_cam``: the pairs
+    that see the same surface of the mesh in ``raycaster``
+    (:func:`~slam_bridge.keyframe_pairs.keyframe_pairs`), each keypoint within ``tolerance_deg`` of
+    where the poses put it. The matches replace any the database held; returns the report (its
+    ``extraction_s`` is the database's).
+
+    ``camera``: the images' camera; ``threads``: how many to match with (default: every core; the
+    matches are the same)."""
+    threads = threads or os.cpu_count() or 1
+    started = time.perf_counter()
     pairs = keyframe_pairs(raycaster, camera, poses)
     paired = time.perf_counter()
+    features = _read_features(database.path, database.image_ids, poses, camera, raycaster)
     with ThreadPoolExecutor(max_workers=threads) as pool:
         found = pool.map(
             lambda pair: guided_matches(features[pair[0]], features[pair[1]], camera, tolerance_deg), pairs
@@ -120,18 +146,17 @@ def match_keyframes(
             matches.append(pair_matches)
             if progress is not None:
                 progress("matching", done, len(pairs))
-    _write_matches(database, camera, image_ids, features, pairs, matches)
-    report = MatchingReport(
-        keyframes=len(names),
+    _write_matches(database.path, camera, database.image_ids, features, pairs, matches)
+    return MatchingReport(
+        keyframes=len(database.names),
         keypoints_mean=float(np.mean([len(f.uv) for f in features])) if features else 0.0,
         pairs=len(pairs),
         matched_pairs=sum(len(m) > 0 for m in matches),
         matches=sum(len(m) for m in matches),
-        extraction_s=extracted - started,
-        pairing_s=paired - extracted,
+        extraction_s=database.extraction_s,
+        pairing_s=paired - started,
         matching_s=time.perf_counter() - paired,
     )
-    return database, report
 
 
 def _new_database(database: Path, camera: CameraModel, names: list[str]) -> list[int]:
@@ -241,13 +266,15 @@ def _write_matches(
     matches: list[np.ndarray],
 ) -> None:
     """Write each pair's matches as both its raw and its verified (inlier) matches, with the
-    two-view geometry the poses give."""
+    two-view geometry the poses give, in place of any matches the database held."""
     import pycolmap
 
     fx, fy, cx, cy = colmap_camera_params(camera)
     K_inv = np.linalg.inv(np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]]))
     db = pycolmap.Database.open(database)
     try:
+        db.clear_matches()
+        db.clear_two_view_geometries()
         for (i, j), pair_matches in zip(pairs, matches, strict=True):
             if len(pair_matches) == 0:
                 continue

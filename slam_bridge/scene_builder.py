@@ -25,7 +25,14 @@ from rig.errors import InputError
 from rig.mesh_rays import mesh_raycaster
 from rig.messages import Frame
 from rig.session import Recording, as_recording, find_topics
-from slam_bridge.colmap_matches import MatchingReport, Progress, match_keyframes, read_correspondences
+from slam_bridge.colmap_matches import (
+    KeyframeDatabase,
+    MatchingReport,
+    Progress,
+    extract_keyframe_features,
+    match_keyframes,
+    read_correspondences,
+)
 from slam_bridge.guided_matching import REFINEMENT_TOLERANCE_DEG, TOLERANCE_DEG
 from slam_bridge.keyframe_lidar import keyframe_lidar, write_keyframe_lidar
 from slam_bridge.keyframe_normals import write_keyframe_normals
@@ -105,11 +112,14 @@ def build_scene(
     write_keyframe_images(out, frames, keyframes, calibration.camera, target, reader.path, done)
     raycaster = mesh_raycaster(mesh)
     database, matching, refinement = None, None, None
+    if config.refine_poses or config.sparse_points:
+        names = [f"{k.name}.png" for k in keyframes]
+        database = extract_keyframe_features(out / "images", out / "colmap", target, names, progress)
     if config.refine_poses:
-        database, matching = _matches(out, target, keyframes, raycaster, progress, REFINEMENT_TOLERANCE_DEG)
-        keyframes, refinement = _refined(database, target, keyframes, raycaster)
+        matching = _matches(database, target, keyframes, raycaster, progress, REFINEMENT_TOLERANCE_DEG)
+        keyframes, refinement = _refined(database.path, target, keyframes, raycaster)
     if config.sparse_points:  # matched (again) at the final poses, to the tolerance of right poses
-        database, matching = _matches(out, target, keyframes, raycaster, progress, TOLERANCE_DEG)
+        matching = _matches(database, target, keyframes, raycaster, progress, TOLERANCE_DEG)
     points = keyframe_lidar(
         reader.scans(topics.points), trajectory, calibration, keyframes, target, config.keyframe_interval_s
     )
@@ -121,7 +131,7 @@ def build_scene(
     sparse_file, triangulation_s = None, None
     if config.sparse_points:
         started = time.perf_counter()
-        sparse_file = _write_sparse_points(database, out, keyframes)
+        sparse_file = _write_sparse_points(database.path, out, keyframes)
         triangulation_s = time.perf_counter() - started
     source = {
         "session": str(reader.path),
@@ -173,20 +183,17 @@ def write_keyframe_images(
 
 
 def _matches(
-    out: Path,
+    database: KeyframeDatabase,
     camera: CameraModel,
     keyframes: list[Keyframe],
     raycaster,
     progress: Progress | None,
     tolerance_deg: float,
-) -> tuple[Path, MatchingReport]:
-    """COLMAP's database of matches between the keyframe images (in ``out/colmap``) to
-    ``tolerance_deg`` of their poses, and its report."""
-    names = [f"{k.name}.png" for k in keyframes]
+) -> MatchingReport:
+    """Match the keyframe images of ``database`` to ``tolerance_deg`` of the keyframes' poses (in
+    place of earlier matches); the report."""
     poses = np.stack([k.T_world_cam for k in keyframes])
-    return match_keyframes(
-        out / "images", out / "colmap", camera, names, poses, raycaster, progress, tolerance_deg=tolerance_deg
-    )
+    return match_keyframes(database, camera, poses, raycaster, progress, tolerance_deg=tolerance_deg)
 
 
 def _refined(

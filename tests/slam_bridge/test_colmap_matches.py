@@ -10,8 +10,8 @@ import pycolmap
 import trimesh
 
 from rig.mesh_rays import mesh_raycaster
-from slam_bridge.colmap_matches import match_keyframes, read_correspondences
-from slam_bridge.guided_matching import tolerance_px
+from slam_bridge.colmap_matches import extract_keyframe_features, match_keyframes, read_correspondences
+from slam_bridge.guided_matching import REFINEMENT_TOLERANCE_DEG, tolerance_px
 from slam_bridge.scene import load_scene
 from slam_bridge.sparse_points import triangulate_keyframes
 
@@ -29,13 +29,16 @@ def test_matching_with_one_and_two_threads_gives_the_same_matches_and_points(
     poses = np.stack([k.T_world_cam for k in scene.keyframes])
     raycaster = mesh_raycaster(trimesh.load(scene_dir / "mesh.ply", process=False))
     images = scene_dir / "images"
-    runs = [
-        match_keyframes(images, tmp_path / f"run{t}", scene.camera, names, poses, raycaster, threads=t)
+    databases = [
+        extract_keyframe_features(images, tmp_path / f"run{t}", scene.camera, names, threads=t)
         for t in (1, 2, 2)
     ]
-    reports = [report for _, report in runs]
+    reports = [
+        match_keyframes(database, scene.camera, poses, raycaster, threads=t)
+        for database, t in zip(databases, (1, 2, 2), strict=True)
+    ]
     assert reports[0].matches > 100
-    matches = [read_correspondences(database, names) for database, _ in runs]
+    matches = [read_correspondences(database.path, names) for database in databases]
     for other in matches[1:]:
         for field in ("observer", "source", "uv_observer", "uv_source", "match"):
             np.testing.assert_array_equal(getattr(other, field), getattr(matches[0], field))
@@ -52,13 +55,23 @@ def test_matching_with_one_and_two_threads_gives_the_same_matches_and_points(
     distance = np.abs(np.sum(lines * homogeneous(first.uv_observer), axis=1))
     assert np.all(distance <= tolerance_px(scene.camera) * np.linalg.norm(lines[:, :2], axis=1) + 1e-6)
     points = [
-        triangulate_keyframes(database, images, database.parent, scene.keyframes).points
-        for database, _ in runs[:2]
+        triangulate_keyframes(database.path, images, database.path.parent, scene.keyframes).points
+        for database in databases[:2]
     ]
     np.testing.assert_array_equal(points[1], points[0])
-    db = pycolmap.Database.open(runs[0][0])
+    db = pycolmap.Database.open(databases[0].path)
     try:
         assert db.num_frames() == len(names)
         assert db.num_verified_image_pairs() == reports[0].matched_pairs
     finally:
         db.close()
+    # matched again (as --refine-poses then --sparse-points do): the new matches replace the old
+    wide = match_keyframes(
+        databases[2], scene.camera, poses, raycaster, tolerance_deg=REFINEMENT_TOLERANCE_DEG
+    )
+    assert wide.matches > reports[2].matches
+    again = match_keyframes(databases[2], scene.camera, poses, raycaster)
+    assert again.matches == reports[0].matches
+    rematched = read_correspondences(databases[2].path, names)
+    for field in ("observer", "source", "uv_observer", "uv_source", "match"):
+        np.testing.assert_array_equal(getattr(rematched, field), getattr(matches[0], field))
