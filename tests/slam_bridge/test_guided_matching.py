@@ -7,7 +7,13 @@ from rig.camera import CameraModel
 from rig.mesh_rays import mesh_raycaster
 from rig.transforms import invert, make_transform, transform_points
 from slam_bridge.guided_matching import KeyframeFeatures, guided_matches
-from slam_bridge.keyframe_pairs import MAX_PARTNERS, TIME_NEIGHBOURS, keyframe_pairs
+from slam_bridge.keyframe_pairs import (
+    MAX_PARTNERS,
+    MAX_SCALE_CHANGE,
+    TIME_NEIGHBOURS,
+    comparable_scales,
+    keyframe_pairs,
+)
 
 CAMERA = CameraModel("pinhole", 640, 480, [[500, 0, 319.5], [0, 500, 239.5], [0, 0, 1]], [])
 RNG_SEED = 0
@@ -111,3 +117,15 @@ def test_pairs_grow_linearly_and_a_revisit_is_paired() -> None:
     assert (0, len(poses) - 1) in pairs
     assert all((i, i + 1) in pairs for i in range(len(poses) - 1))
     assert (0, 20) not in pairs  # facing away from each other
+
+
+def test_only_keyframes_at_comparable_distances_are_compared() -> None:
+    """Keyframe 0 sees a surface 2 m ahead; keyframe 1 is 1 m behind it (1.5x the distance),
+    keyframe 2 further back than the scale limit allows, keyframe 3 sees nothing."""
+    back = [0.0, 1.0, 2.0 * MAX_SCALE_CHANGE, 0.0]
+    poses = np.stack([looking_along_z(np.array([0.0, 0.0, -b])) for b in back])
+    wall = np.column_stack([np.linspace(-1, 1, 5), np.zeros(5), np.full(5, 2.0)])
+    samples = [wall, wall, wall, np.zeros((0, 3))]
+    comparable = comparable_scales(poses, samples)
+    np.testing.assert_array_equal(comparable[0], [True, True, False, True])
+    assert not comparable[3].any()
