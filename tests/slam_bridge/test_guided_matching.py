@@ -66,18 +66,25 @@ def test_a_twin_off_the_geometry_is_not_matched() -> None:
             assert len(matches) == (len(points) if allowed_by_the_line_alone else 0)
 
 
+def with_copies(seen: KeyframeFeatures) -> KeyframeFeatures:
+    """``seen`` with a copy of every keypoint 40 px below it (same descriptor, no depth)."""
+    return KeyframeFeatures(
+        np.concatenate([seen.uv, seen.uv + np.array([0.0, 40.0])]),
+        np.concatenate([seen.descriptors] * 2),
+        np.concatenate([seen.depth, np.full(len(seen.depth), np.nan)]),
+        seen.T_world_cam,
+    )
+
+
 def test_an_ambiguous_descriptor_is_not_matched() -> None:
-    """Lowe's ratio test is over the whole image: a copy elsewhere makes a match ambiguous."""
+    """Lowe's ratio test is over the whole of both images: a copy elsewhere in either one makes a
+    match ambiguous (the copies lie off the epipolar lines, so the band alone would keep them)."""
     points, descriptors = scene()
     a = features(points, descriptors, looking_along_z(np.zeros(3)), depth=True)
     b = features(points, descriptors, looking_along_z(np.array([0.5, 0.0, 0.0])), depth=True)
-    copies = KeyframeFeatures(
-        np.concatenate([b.uv, b.uv + np.array([0.0, 40.0])]),
-        np.concatenate([b.descriptors] * 2),
-        b.depth,
-        b.T_world_cam,
-    )
-    assert len(guided_matches(a, copies, CAMERA)) == 0
+    assert len(guided_matches(a, b, CAMERA)) == len(points)
+    assert len(guided_matches(a, with_copies(b), CAMERA)) == 0
+    assert len(guided_matches(with_copies(a), b, CAMERA)) == 0
 
 
 def test_poses_wrong_beyond_the_tolerance_give_no_matches() -> None:
