@@ -27,6 +27,7 @@ from rig.atomic_file import atomic_path
 from rig.camera import CameraModel
 from rig.errors import InputError
 from splat.background import MAX_DEGREE, background_image, background_pixels, n_coefficients
+from splat.finite import all_finite
 from splat.raster import RenderOutput, render
 
 PARAM_NAMES = ("vertices", "colors", "opacity")
@@ -157,7 +158,7 @@ class TriangleModel:
             if tuple(params[name].shape) != shape:
                 got = tuple(params[name].shape)
                 raise InputError(f"expected shape {shape}, got {got}", path=path, field=name)
-            if not bool(torch.isfinite(params[name]).all()):
+            if not all_finite(params[name]):
                 raise InputError("holds NaN or Inf", path=path, field=name)
         background = _background_from_state(state, device, path)
         return cls(params, float(state.get("sigma", 1.0)), float(state.get("opacity_floor", 0.0)), background)
@@ -174,7 +175,7 @@ def _background_from_state(state: dict, device: torch.device | str, path: Path |
     if background.dim() != 2 or background.shape[1] != 3 or len(background) not in sizes:
         got = tuple(background.shape)
         raise InputError(f"expected shape (K, 3) with K in {sizes}, got {got}", path=path, field="background")
-    if not bool(torch.isfinite(background).all()):
+    if not all_finite(background):
         raise InputError("holds NaN or Inf", path=path, field="background")
     return background.to(device).clone().requires_grad_(True)
 

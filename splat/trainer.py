@@ -26,6 +26,7 @@ from splat import run_dir as layout
 from splat.background_mask import scored_background_mask
 from splat.coarse_views import coarse_iterations, half_camera, half_view
 from splat.config import TrainConfig, load_config
+from splat.finite import all_finite
 from splat.held_out_views import evaluate_views, write_renders
 from splat.initialise import build_model, initial_triangles
 from splat.losses import training_loss
@@ -108,7 +109,7 @@ def _view_order(seed: int, epoch: int, n: int) -> np.ndarray:
 def _finite_step(loss: torch.Tensor, model: TriangleModel) -> bool:
     if not bool(torch.isfinite(loss)):
         return False
-    return all(p.grad is None or bool(torch.isfinite(p.grad).all()) for p in model.trainable())
+    return all(p.grad is None or all_finite(p.grad) for p in model.trainable())
 
 
 class Trainer:

@@ -11,6 +11,7 @@ from torch import Tensor
 
 from rig.camera import CameraModel
 from rig.errors import InputError
+from splat.finite import all_finite
 from splat.raster.binning import bin_triangles
 from splat.raster.extension import cpu_extension, cuda_extension
 from splat.raster.kernel import rasterize_kernel
@@ -74,7 +75,7 @@ def _check(name: str, t: Tensor, shape: tuple[int | None, ...], dtype: torch.dty
         raise InputError(f"expected shape ({want}), got {tuple(t.shape)}", field=name)
     if dtype is not None and t.dtype != dtype:
         raise InputError(f"expected dtype {dtype}, got {t.dtype}", field=name)
-    if t.is_floating_point() and not bool(torch.isfinite(t).all()):
+    if not all_finite(t):
         raise InputError("contains NaN or Inf", field=name)
 
 
