@@ -56,9 +56,19 @@ def _gaussian_blur(maps: Tensor) -> Tensor:
     return F.conv2d(F.conv2d(maps, along_x, groups=channels), along_y, groups=channels)
 
 
-def ssim_map(rendered: Tensor, target: Tensor) -> Tensor:
+def image_moments(image: Tensor) -> Tensor:
+    """The local mean and mean square of a target ``(H, W, 3)`` image in SSIM's window, the two
+    moments SSIM needs of it alone: ``(1, 6, H, W)`` (mean channels first), without gradient. A
+    training view's are the same every time it is seen (1.5 ms a 320x240 view, 5.4 ms at 640x480)."""
+    y = image.permute(2, 0, 1)[None]
+    with torch.no_grad():
+        return _gaussian_blur(torch.cat([y, y * y], dim=1)).contiguous()
+
+
+def ssim_map(rendered: Tensor, target: Tensor, target_moments: Tensor | None = None) -> Tensor:
     """Per-pixel SSIM ``(H, W, 3)`` of two ``(H, W, 3)`` images in [0, 1], with the standard 11×11
     Gaussian window (σ = 1.5) and reflected borders: the values of ``kornia.metrics.ssim``.
+    ``target_moments``: :func:`image_moments` of ``target`` when they are at hand.
 
     Written out rather than calling kornia because training spends most of its loss time here:
     kornia blurs the five local moments one call at a time and records the target's moments in
@@ -70,8 +80,7 @@ def ssim_map(rendered: Tensor, target: Tensor) -> Tensor:
     y = target.permute(2, 0, 1)[None]
     # The blurs come out channels-last, each moment's channels interleaved with the others':
     # element-wise steps run faster on planes, after one copy.
-    with torch.no_grad():
-        mu_y, yy = _gaussian_blur(torch.cat([y, y * y], dim=1)).contiguous().split(3, dim=1)
+    mu_y, yy = (image_moments(target) if target_moments is None else target_moments).split(3, dim=1)
     mu_x, xx, xy = _gaussian_blur(torch.cat([x, x * x, x * y], dim=1)).contiguous().split(3, dim=1)
     mu_xy, mu_x2, mu_y2 = mu_x * mu_y, mu_x * mu_x, mu_y * mu_y
     numerator = (2 * mu_xy + SSIM_C1) * (2 * (xy - mu_xy) + SSIM_C2)
@@ -89,10 +98,13 @@ def masked_mean(values: Tensor, mask: Tensor) -> Tensor:
     return selected.sum() / (mask.sum() * (values.numel() // mask.numel()))
 
 
-def dssim(rendered: Tensor, target: Tensor, keep: Tensor | None = None) -> Tensor:
+def dssim(
+    rendered: Tensor, target: Tensor, keep: Tensor | None = None, target_moments: Tensor | None = None
+) -> Tensor:
     """``1 - SSIM`` (:func:`ssim_map`; mean over pixels, those where ``keep`` ``(H, W)`` bool is
-    True when given) of two ``(H, W, 3)`` images in [0, 1]."""
-    values = ssim_map(rendered, target)
+    True when given) of two ``(H, W, 3)`` images in [0, 1]; ``target_moments``: as for
+    :func:`ssim_map`."""
+    values = ssim_map(rendered, target, target_moments)
     return 1.0 - (values.mean() if keep is None else masked_mean(values, keep))
 
 
@@ -127,6 +139,7 @@ def training_loss(
     opacity: Tensor,
     config: TrainConfig,
     moving_mask: Tensor | None = None,
+    target_moments: Tensor | None = None,
 ) -> LossTerms:
     """All loss terms of one view.
 
@@ -139,12 +152,13 @@ def training_loss(
             triangles this view sees (Adam would turn even a tiny constant gradient into full-size
             steps and fade out every triangle no view sees — geometry only the LiDAR saw).
         moving_mask: ``(H, W)`` bool, pixels of moving objects left out of L1 and D-SSIM, or None.
+        target_moments: :func:`image_moments` of ``image`` when they are at hand (else computed).
     """
     zero = image.new_zeros(())
     keep = None if moving_mask is None or not bool(moving_mask.any()) else ~moving_mask
     error = (out.rgb - image).abs()
     l1 = error.mean() if keep is None else masked_mean(error, keep)
-    ds = dssim(out.rgb, image, keep) if config.lambda_dssim > 0 else zero
+    ds = dssim(out.rgb, image, keep, target_moments) if config.lambda_dssim > 0 else zero
     depth = (
         accumulated_depth_l1(out, lidar_depth, config.depth_reference_m)
         if lidar_depth is not None and config.w_depth > 0

@@ -73,7 +73,7 @@ class ProfiledTrainer(Trainer):
         with self._timed(SECTIONS[2]):
             terms = training_loss(
                 replace(out, **leaves), view.image, view.depth, view.normal, opacity, self.config,
-                moving_mask=view.moving_mask,
+                moving_mask=view.moving_mask, target_moments=view.image_moments,
             )  # fmt: skip
         with self._timed(SECTIONS[3]):
             terms.total.backward()
@@ -84,7 +84,7 @@ class ProfiledTrainer(Trainer):
         if self.config.lambda_dssim > 0:
             with self._timed(DSSIM_SHARE):
                 rgb = out.rgb.detach().requires_grad_()
-                dssim(rgb, view.image).backward()
+                dssim(rgb, view.image, target_moments=view.image_moments).backward()
         with self._timed(SECTIONS[5]):
             accepted = self._optimizer_step(terms.total, it)
         with self._timed(SECTIONS[6]):

@@ -26,6 +26,8 @@ class View:
             wherever the triangles leave alpha below one.
         moving_mask: ``(H, W)`` bool, pixels of moving objects the photometric loss leaves out,
             or None when the keyframe saw none (:meth:`~slam_bridge.scene.Scene.moving_mask`).
+        image_moments: the image's :func:`~splat.losses.image_moments` ``(1, 6, H, W)``, once the
+            trainer has kept them (None: D-SSIM computes them each time).
     """
 
     name: str
@@ -35,6 +37,7 @@ class View:
     normal: Tensor | None
     background_mask: Tensor | None = None
     moving_mask: Tensor | None = None
+    image_moments: Tensor | None = None
 
 
 def load_views(

@@ -6,7 +6,7 @@ import kornia
 import pytest
 import torch
 
-from splat.losses import dssim, masked_mean, ssim_map
+from splat.losses import dssim, image_moments, masked_mean, ssim_map
 
 
 @pytest.mark.parametrize(("height", "width"), [(24, 32), (61, 47)])
@@ -39,6 +39,19 @@ def test_dssim_of_an_image_with_itself_is_zero_and_keep_selects_pixels():
     # The same mean, summed in another order (float32).
     assert float(dssim(noisy, image, keep)) == pytest.approx(float(expected), rel=1e-5)
     assert float(dssim(noisy, image, keep)) != pytest.approx(float(dssim(noisy, image)))
+
+
+def test_dssim_with_the_targets_moments_at_hand_is_the_same():
+    generator = torch.Generator().manual_seed(3)
+    target = torch.rand(30, 40, 3, generator=generator)
+    render = torch.rand(30, 40, 3, generator=generator)
+    given, computed = render.clone().requires_grad_(), render.clone().requires_grad_()
+    with_moments = dssim(given, target, target_moments=image_moments(target))
+    without = dssim(computed, target)
+    with_moments.backward()
+    without.backward()
+    assert torch.equal(with_moments, without)
+    assert torch.equal(given.grad, computed.grad)
 
 
 @pytest.mark.parametrize("shape", [(7, 9, 3), (7, 9), (50,)])

@@ -256,6 +256,23 @@ def test_resume_after_a_kill_reaches_identical_parameters(scene_dir, tmp_path, m
     assert [json.loads(line)["iteration"] for line in lines] == [20, 40, 60]
 
 
+def test_keeping_the_views_image_moments_changes_nothing_but_the_time(scene_dir, tmp_path, monkeypatch):
+    import splat.trainer as trainer_module
+
+    config = _tiny_config(iterations=40)
+    kept = Trainer(scene_dir, tmp_path / "kept", config, log=lambda *_: None)
+    kept.prepare(resume=False)
+    kept.run(progress=False)
+    assert all(view.image_moments is not None for view in kept.train_views)
+    monkeypatch.setattr(trainer_module, "IMAGE_MOMENTS_BUDGET_BYTES", 0)
+    recomputed = Trainer(scene_dir, tmp_path / "recomputed", config, log=lambda *_: None)
+    recomputed.prepare(resume=False)
+    recomputed.run(progress=False)
+    assert all(view.image_moments is None for view in recomputed.train_views)
+    for name in kept.model.params:
+        assert torch.equal(kept.model.params[name], recomputed.model.params[name]), name
+
+
 def test_non_finite_steps_are_rejected_and_persistent_ones_stop_training(scene_dir, tmp_path, monkeypatch):
     import splat.trainer as trainer_module
 
