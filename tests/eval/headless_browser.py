@@ -10,7 +10,9 @@ from __future__ import annotations
 import base64
 import itertools
 import json
+import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -88,11 +90,14 @@ def screenshot_when(
     if CHROMIUM is None:
         raise RuntimeError("no Chromium on PATH")
     deadline = time.monotonic() + timeout_s
-    with tempfile.TemporaryDirectory(prefix="chromium-") as profile:
+    # Killing the browser alone left its helper processes writing into the profile while it was
+    # removed ("Directory not empty: 'Default'" in one full-suite run): the whole process group is
+    # killed, and a helper that left the group cannot fail the test by writing a late file.
+    with tempfile.TemporaryDirectory(prefix="chromium-", ignore_cleanup_errors=True) as profile:
         window = f"--window-size={size[0]},{size[1]}"
         browser = subprocess.Popen(
             [CHROMIUM, *CHROMIUM_FLAGS, window, f"--user-data-dir={profile}", url],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
         )  # fmt: skip
         try:
             port = _devtools_port(Path(profile), browser, deadline)
@@ -109,5 +114,5 @@ def screenshot_when(
                         return image
                     time.sleep(1.0)
         finally:
-            browser.kill()
+            os.killpg(browser.pid, signal.SIGKILL)
             browser.wait()
