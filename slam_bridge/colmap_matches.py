@@ -83,12 +83,11 @@ def colmap_camera_params(camera: CameraModel) -> list[float]:
 
 @dataclass(frozen=True)
 class KeyframeDatabase:
-    """A COLMAP database at ``path`` holding the SIFT features of the keyframe images ``names``
-    (in time order) under ``image_ids``, extracted in ``extraction_s`` seconds; matching writes
-    into it (:func:`match_keyframes`), as often as the poses change."""
+    """A COLMAP database at ``path`` holding the SIFT features of the keyframe images (in time
+    order) under ``image_ids``, extracted in ``extraction_s`` seconds; matching writes into it
+    (:func:`match_keyframes`), as often as the poses change."""
 
     path: Path
-    names: list[str]
     image_ids: list[int]
     extraction_s: float
 
@@ -113,7 +112,7 @@ def extract_keyframe_features(
     started = time.perf_counter()
     image_ids = _new_database(database, camera, names)
     _extract_features(database, images_dir, camera, names, threads, progress)
-    return KeyframeDatabase(database, list(names), image_ids, time.perf_counter() - started)
+    return KeyframeDatabase(database, image_ids, time.perf_counter() - started)
 
 
 def match_keyframes(
@@ -149,7 +148,7 @@ def match_keyframes(
                 progress("matching", done, len(pairs))
     _write_matches(database.path, camera, database.image_ids, features, pairs, matches)
     return MatchingReport(
-        keyframes=len(database.names),
+        keyframes=len(database.image_ids),
         keypoints_mean=float(np.mean([len(f.uv) for f in features])) if features else 0.0,
         pairs=len(pairs),
         matched_pairs=sum(len(m) > 0 for m in matches),
