@@ -14,8 +14,8 @@ from scipy.ndimage import median_filter
 from scipy.spatial.transform import Rotation
 
 from calib.boards import to_gray
+from calib.kiss_odometry import KissOdometry
 from rig.camera import CameraModel
-from rig.lidar_odometry import SweepOdometry
 from rig.messages import Frame, ImuSample, Scan
 
 #: Frames this far apart are compared (a longer baseline steadies the essential matrix).
@@ -82,18 +82,18 @@ def camera_angular_velocity(frames: Sequence[Frame], camera: CameraModel) -> tup
     return np.asarray(times), omega
 
 
-def _odometry(scans: Sequence[Scan]) -> SweepOdometry:
+def _odometry(scans: Sequence[Scan]) -> KissOdometry:
     """KISS-ICP odometry with a range and voxel size that suit these scans."""
     ranges = np.concatenate(
         [np.linalg.norm(s.points[:: max(1, len(s) // 500)], axis=1) for s in scans[:20]] or [[1.0]]
     )
     max_range = float(np.percentile(ranges, 99)) * 1.5
-    # KISS-ICP's own default (range / 100), kept within what suits rooms and streets.
-    return SweepOdometry(float(np.clip(max_range / 100, 0.05, 1.0)), max_range)
+    # KISS-ICP's default voxel (range / 100), kept within what suits rooms and streets.
+    return KissOdometry(float(np.clip(max_range / 100, 0.05, 1.0)), max_range)
 
 
 def lidar_poses(scans: Sequence[Scan], backward: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """KISS-ICP odometry on raw sweeps (:class:`rig.lidar_odometry.SweepOdometry`): pose times
+    """KISS-ICP odometry on raw sweeps (:class:`calib.kiss_odometry.KissOdometry`): pose times
     ``(J,)`` (s, host clock, when each pose holds) and poses ``(J, 4, 4)``, in scan order;
     ``backward`` runs the odometry from the last scan to the first."""
     odometry = _odometry(scans)

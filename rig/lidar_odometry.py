@@ -1,32 +1,40 @@
-"""LiDAR odometry with KISS-ICP on raw (not de-skewed) sweeps, each pose stamped when it holds.
+"""LiDAR odometry on raw (not de-skewed) sweeps, each pose stamped when it holds.
 
-Used by the time-offset calibration (the LiDAR clock's motion) and the fallback mapper. KISS-ICP's
-own de-skew is left off: it moves each point to the sweep's last point (versions 1.x) with the
-previous sweep's motion, which is wrong for a rig that pitches and rolls at a few Hz. On the
-virtual rig's room it made the roll and pitch rates lag the truth by 110–130 ms (yaw by 5 ms) and
-left the mapper's roll and pitch 0.40° / 0.32° rms off the truth (0.07° / 0.05° without). The pose
-of a sweep left skewed holds at the time :func:`sweep_information` finds (~12 ms before the sweep
-middle there).
+Used by the time-offset calibration (the LiDAR clock's motion) and the fallback mapper. Each sweep
+is registered to a map of the sweeps before it by voxelized GICP (small_gicp's VGICP: every map
+voxel a Gaussian of the points that fell in it, every sweep point with the covariance of its
+neighbours), starting from a constant-velocity prediction. Plane-to-plane residuals do not care
+where on a surface a LiDAR's rings fall; KISS-ICP's point-to-point ones do, and on a 64-beam
+street they pulled each sweep towards the rings of the sweeps before it, i.e. towards standing
+still: 78 sweeps of the virtual street (21.0 m, de-skewed with the true poses) gave a 20.86 m path
+and 13.5 cm ATE at 0.36 m voxels (8.0 m at 1 m voxels), VGICP 21.02 m and 0.66 cm.
+
+The sweeps are not de-skewed first: a de-skew needs the motion, and a constant-velocity guess is
+wrong for a rig that pitches and rolls at a few Hz (KISS-ICP's made the virtual room's roll and
+pitch rates lag the truth by 110–130 ms). The pose of a sweep left skewed holds at the time
+:func:`sweep_information` finds.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from rig.transforms import invert
+
 #: Neighbours of a point that give its surface normal (for :func:`sweep_information`).
 NORMAL_NEIGHBOURS = 10
 #: Source points whose times :func:`sweep_information` averages.
 INFORMATION_SAMPLES = 1000
-#: Map points kept per voxel (KISS-ICP's default is 20): only the motion between sweeps is needed.
-#: On the virtual rig's 20 s room session (0.1 m voxels) the time-offset odometry over 200 sweeps
-#: took 16–17 s instead of 20–57 s (shared 2 cores), and the mapper's roll / pitch / yaw went from
-#: 0.15 / 0.08 / 0.23° to 0.12 / 0.07 / 0.14° rms, ATE 1.04 to 0.86 cm, its odometry 48 to 20 s.
-#: 3 instead of 5 (200 sweeps, 0.1 m voxels, one registration pass): room ATE 0.86 -> 0.83 cm,
-#: corridor 0.98 -> 0.81 cm, registration 39 % less time.
-ODOMETRY_POINTS_PER_VOXEL = 3
+#: The map's voxels (each one Gaussian) are this many times the sweep's downsampling voxel.
+MAP_VOXELS_PER_VOXEL = 3
+#: Neighbours whose spread gives each sweep point its covariance.
+COVARIANCE_NEIGHBOURS = 10
+#: Map voxels not matched by the last this many sweeps are dropped (memory stays bounded).
+MAP_HORIZON_SWEEPS = 100
 
 
 @dataclass(frozen=True)
@@ -75,51 +83,96 @@ def sweep_information(source: np.ndarray, points: np.ndarray, times: np.ndarray)
     return SweepInformation(held_s, eigenvalues, directions[:, 0])
 
 
-#: KISS-ICP threads: one, for the same poses bit for bit on every run (see SweepOdometry).
+#: Registration threads: one, for the same poses bit for bit on every run (the sweeps'
+#: covariances use every core: they do not depend on the thread count). Parallel reductions
+#: sum the normal equations in a thread-dependent order, and registration amplifies the last-bit
+#: differences (the trajectory, the mesh and the training all changed from run to run).
 ODOMETRY_THREADS = 1
 
 
+def covariance_threads() -> int:
+    """Threads for the sweeps' covariances: ``OMP_NUM_THREADS`` where it is a positive number (as
+    OpenMP itself reads it), else every core."""
+    value = os.environ.get("OMP_NUM_THREADS", "")
+    return int(value) if value.isdigit() and int(value) > 0 else (os.cpu_count() or 1)
+
+
+def _nearest_rotation(T: np.ndarray) -> np.ndarray:
+    """``T`` ``(4, 4)`` with its rotation block projected onto the nearest rotation: products of
+    poses drift from orthonormality, and composing a drifted pose with its transpose-inverse
+    compounds the drift geometrically until the poses blow up."""
+    U, _, Vt = np.linalg.svd(T[:3, :3])
+    out = T.copy()
+    out[:3, :3] = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    return out
+
+
 class SweepOdometry:
-    """KISS-ICP odometry (de-skew off, :data:`ODOMETRY_POINTS_PER_VOXEL`) fed one sweep at a time.
+    """Scan-to-map VGICP odometry (small_gicp) fed one sweep at a time.
 
     Args:
-        voxel_size: KISS-ICP voxel size in metres.
-        max_range, min_range: points outside this range (m) are ignored by KISS-ICP.
+        voxel_size: the sweeps are downsampled to this voxel (m); the map's Gaussians are
+            :data:`MAP_VOXELS_PER_VOXEL` times larger.
+        max_range, min_range: points outside this range (m) are ignored.
     """
 
     def __init__(self, voxel_size: float, max_range: float, min_range: float = 0.0) -> None:
-        from kiss_icp.config import KISSConfig
-        from kiss_icp.kiss_icp import KissICP
+        import small_gicp
 
-        config = KISSConfig()
-        config.data.max_range = max_range
-        config.data.min_range = min_range
-        config.data.deskew = False
-        config.mapping.voxel_size = voxel_size
-        config.mapping.max_points_per_voxel = ODOMETRY_POINTS_PER_VOXEL
-        # One thread: KISS-ICP's parallel reductions sum in a thread-dependent order, so with two
-        # threads the same sweeps gave poses differing by ~5e-16 per run, which registration then
-        # amplifies (the trajectory, the mesh and training all changed from run to run). Its C++
-        # sets the thread limit once per process (a static tbb::global_control at the first
-        # registration built), so every odometry here must ask for the same count. Costs ~20 %.
-        config.registration.max_num_threads = ODOMETRY_THREADS
-        self._icp = KissICP(config)
+        self._gicp = small_gicp
+        self.voxel_size, self.max_range, self.min_range = voxel_size, max_range, min_range
+        self._map_voxel = MAP_VOXELS_PER_VOXEL * voxel_size
+        self._map = small_gicp.GaussianVoxelMap(self._map_voxel)
+        self._map.set_lru(horizon=MAP_HORIZON_SWEEPS, clear_cycle=10)
+        self._poses: list[np.ndarray] = []  # the last two
+        #: Per registered sweep: how far registration moved the pose from the prediction (m), and
+        #: the fraction of the sweep's points that found a map voxel.
+        self.corrections_m: list[float] = []
+        self.inlier_fractions: list[float] = []
 
-    def register(self, points: np.ndarray, point_time_s: np.ndarray) -> tuple[np.ndarray, SweepInformation]:
-        """Register a sweep's raw points ``(N, 3)`` float64 (times ``(N,)`` s from the sweep
-        stamp); returns the pose ``T_world_lidar`` ``(4, 4)`` (world: the first sweep's LiDAR
-        frame) and its :func:`sweep_information` (when the pose holds, how well it is constrained)."""
-        _, source = self._icp.register_frame(points, np.zeros(0))
-        return self._icp.last_pose.copy(), sweep_information(np.asarray(source), points, point_time_s)
-
-    @property
-    def threshold_m(self) -> float:
-        """KISS-ICP's adaptive correspondence threshold now (m): the spread of the difference
-        between its constant-velocity prediction and the registered poses so far."""
-        return float(self._icp.adaptive_threshold.get_threshold())
+    def _prediction(self) -> np.ndarray:
+        """The constant-velocity guess of the next pose ``(4, 4)`` (the last motion repeated)."""
+        if len(self._poses) < 2:
+            return self._poses[-1] if self._poses else np.eye(4)
+        before, last = self._poses[-2], self._poses[-1]
+        return _nearest_rotation(last @ invert(before) @ last)
 
     def register_rigid(self, points: np.ndarray) -> np.ndarray:
         """Register points ``(N, 3)`` float64 of a sweep already de-skewed to one instant; returns
-        the pose ``T_world_lidar`` ``(4, 4)`` at that instant."""
-        self._icp.register_frame(points, np.zeros(0))
-        return self._icp.last_pose.copy()
+        the pose ``T_world_lidar`` ``(4, 4)`` at that instant (world: the first sweep's frame)."""
+        return self._register(points)[0]
+
+    def register(self, points: np.ndarray, point_time_s: np.ndarray) -> tuple[np.ndarray, SweepInformation]:
+        """Register a sweep's raw points ``(N, 3)`` float64 (times ``(N,)`` s from the sweep
+        stamp); returns the pose ``T_world_lidar`` ``(4, 4)`` and its :func:`sweep_information`
+        (when the pose holds, how well it is constrained)."""
+        pose, registered = self._register(points)
+        return pose, sweep_information(registered, points, point_time_s)
+
+    def _register(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Register a sweep's points ``(N, 3)`` to the map and add them to it: the pose ``(4, 4)``
+        and the downsampled points ``(M, 3)`` (sensor frame) that were registered."""
+        squared = np.einsum("ij,ij->i", points, points)
+        inside = points[(squared >= self.min_range**2) & (squared <= self.max_range**2)]
+        # The downsampling on one thread (with more, the points come out in a thread-dependent
+        # order); the covariances on all: each point's is its own, so they come out the same.
+        sweep = self._gicp.voxelgrid_sampling(inside, self.voxel_size, num_threads=1)
+        threads = covariance_threads()
+        self._gicp.estimate_covariances(
+            sweep, self._gicp.KdTree(sweep, num_threads=threads), COVARIANCE_NEIGHBOURS, num_threads=threads
+        )
+        guess = self._prediction()
+        if not self._poses:
+            pose, inliers = guess, sweep.size()
+        else:
+            result = self._gicp.align(
+                self._map, sweep, guess, max_correspondence_distance=self._map_voxel,
+                num_threads=ODOMETRY_THREADS,
+            )  # fmt: skip
+            # (A copy: the array views memory that the result frees.)
+            pose, inliers = _nearest_rotation(np.array(result.T_target_source)), result.num_inliers
+        self.corrections_m.append(float(np.linalg.norm(pose[:3, 3] - guess[:3, 3])))
+        self.inlier_fractions.append(inliers / max(sweep.size(), 1))
+        self._map.insert(sweep, pose)
+        self._poses = [*self._poses[-1:], pose]
+        return pose.copy(), sweep.points()[:, :3]

@@ -92,7 +92,11 @@ def run_command(
     start: float = START_OPTION,
     duration: float | None = DURATION_OPTION,
     voxel: float | None = typer.Option(
-        None, "--voxel", min=0.001, help="KISS-ICP voxel size in m (default: from the data)."
+        None,
+        "--voxel",
+        min=0.001,
+        help="Odometry voxel in m: each sweep is downsampled to it and the map's voxels are 3 times "
+        "larger (default: 1/60 of the first sweep's 95th-percentile range, within 0.1-1 m).",
     ),
     tsdf_voxel: float | None = typer.Option(
         None,
@@ -103,8 +107,9 @@ def run_command(
     ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
-    """Fallback mapper on a recording's LiDAR sweeps (per-point times): KISS-ICP LiDAR odometry
-    (deskewed scans) and a TSDF mesh, written like an import."""
+    """Fallback mapper on a recording's LiDAR sweeps (per-point times): scan-to-map LiDAR odometry
+    (VGICP), the moving points found and the static ones registered again, and a TSDF mesh of the
+    de-skewed sweeps, written like an import, with a verdict on the trajectory."""
     from rich.progress import Progress
 
     from rig.calibration import load_calibration
@@ -116,7 +121,7 @@ def run_command(
     recording = open_from_options(session, topics, start, duration)
     config = MapperConfig(voxel_size_m=voxel, tsdf_voxel_m=tsdf_voxel)
     with Progress(console=console, transient=True) as bar:
-        task = bar.add_task("mapping (KISS-ICP + TSDF)", total=None)
+        task = bar.add_task("mapping (odometry + TSDF)", total=None)
         summary = map_session(
             recording, out, config, points_topic, progress=lambda i, n: bar.update(task, completed=i, total=n)
         )

@@ -42,8 +42,8 @@ class MapSummary:
             f"wrote {self.out}/mesh.ply ({self.faces} faces) and trajectory.tum ({self.poses} poses, "
             f"{self.path_length_m:.2f} m); {100 * self.dynamic_fraction:.1f} % of the LiDAR points, judged "
             "moving (other sweeps see through them), were left out of the mesh",
-            f"odometry: KISS-ICP voxel {s['voxel_m']:.2f} m, {s['points_per_voxel']} points per voxel, "
-            f"ranges up to {s['max_range_m']:g} m"
+            f"odometry: VGICP, sweeps downsampled to {s['voxel_m']:.2f} m, map voxels "
+            f"{s['map_voxel_m']:.2f} m, ranges up to {s['max_range_m']:g} m"
             + (", the static points registered again" if s["static_reregistration"] else "")
             + f"; TSDF voxel {s['tsdf_voxel_m']:.3g} m",
             f"trajectory: {q.verdict}"

@@ -14,7 +14,9 @@ def _straight(n: int = 50, step: float = 0.3) -> np.ndarray:
 def _judge(raw: np.ndarray, static: np.ndarray, dynamic: float, weakest: float = 0.25):
     n = len(static)
     directions = np.tile([0.0, 1.0, 0.0], (n, 1))
-    return judge_mapping(raw, static, dynamic, np.full(n, weakest), directions, np.full(n, 0.3))
+    return judge_mapping(
+        raw, static, dynamic, np.full(n, weakest), directions, np.full(n, 0.01), np.full(n, 0.9)
+    )
 
 
 def test_a_well_constrained_static_run_is_ok() -> None:
