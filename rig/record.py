@@ -79,7 +79,8 @@ def _role(message: Frame | Scan | ImuSample) -> str:
 
 
 class Recording:
-    """Opens the sources, records until ``duration_s`` or ``stop``, and finishes the file.
+    """Opens the sources, records until ``duration_s``, ``stop`` or every source has finished (a
+    replayed recording at its end), and finishes the file.
 
     Args:
         sources: drivers and their topics.
@@ -175,6 +176,8 @@ class Recording:
                 t.start()
             while not stop.is_set() and self.recorder.recording:
                 if duration_s is not None and time.monotonic() - self.started >= duration_s:
+                    break
+                if all(s.driver.finished for s in self.sources):  # recordings replayed to the end
                     break
                 stop.wait(0.25)
                 if on_tick is not None:

@@ -86,6 +86,12 @@ class Driver(ABC):
     def close(self) -> None:
         """Release the device."""
 
+    @property
+    def finished(self) -> bool:
+        """Whether the source has nothing more to send: a recording replayed to its end (a live
+        device never finishes)."""
+        return False
+
     def device_id(self) -> str:
         """A stable id of the device (serial number, port or address)."""
         return self.name

@@ -38,8 +38,35 @@ def test_driver_reads_pcap(real_data: Path) -> None:
     driver = OusterDriver("os", pcap=str(d / CAPTURES[1][0]), meta=str(d / CAPTURES[1][1]))
     with driver:
         got = [m for _ in range(5) for m in driver.read()]
+        assert driver.finished  # the pcap's end
     assert len(got) == 3 and driver.device_id() == "122201000998"
     assert driver.health.received == 3
+    # Host stamps keep the pcap's spacing, however fast the frames decode.
+    np.testing.assert_array_equal(np.diff([m.t_host for m in got]), np.diff([m.t_device for m in got]))
+
+
+def test_rig_record_of_a_pcap_ends_with_it(real_data: Path, tmp_path: Path) -> None:
+    """`rig record` of a pcap device stops when the pcap is replayed, without --duration, and the
+    session's sweeps are 0.1 s apart as the sensor took them."""
+    import subprocess
+    import sys
+
+    from rig.session import SessionReader
+
+    d = real_data / "ouster"
+    config = tmp_path / "rig.yaml"
+    config.write_text(
+        f"devices:\n  - {{name: os, kind: ouster, pcap: {d / CAPTURES[1][0]}, meta: {d / CAPTURES[1][1]}}}\n"
+    )
+    rig = Path(sys.executable).parent / "rig"
+    out = tmp_path / "os.mcap"
+    result = subprocess.run(
+        [rig, "record", "--config", config, "--out", out], capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    stamps = [scan.t_host for scan in SessionReader(out).scans("/os/points")]
+    assert len(stamps) == 3
+    np.testing.assert_allclose(np.diff(stamps) / 1e9, 0.1, atol=0.002)
 
 
 def test_raw_packets_from_a_ros1_bag(real_data: Path) -> None:
