@@ -67,6 +67,15 @@ def sample_surface(mesh: trimesh.Trimesh, count: int = DEFAULT_SAMPLES, seed: in
     return np.asarray(points, dtype=np.float64)
 
 
+def surface_distances(points: np.ndarray, mesh: trimesh.Trimesh) -> np.ndarray:
+    """Distance (m) from each point ``(N, 3)`` to the nearest point of ``mesh``'s surface ``(N,)``
+    (open3d's closest-point query, float32 precision)."""
+    import open3d as o3d
+
+    query = o3d.core.Tensor(np.asarray(points, dtype=np.float32))
+    return mesh_raycaster(mesh).compute_distance(query).numpy().astype(np.float64)
+
+
 def frustum_mask(
     points: np.ndarray,
     poses_world_cam: np.ndarray,
@@ -145,6 +154,19 @@ def compare_point_sets(
             raise InputError("points hold NaN or Inf", field=name)
     to_gt, _ = cKDTree(ground_truth).query(reconstructed, workers=-1)
     to_rec, _ = cKDTree(reconstructed).query(ground_truth, workers=-1)
+    return metrics_from_distances(to_gt, to_rec, threshold_m)
+
+
+def metrics_from_distances(to_gt: np.ndarray, to_rec: np.ndarray, threshold_m: float) -> GeometricMetrics:
+    """The metrics of distances (m) from reconstruction samples to the ground truth ``(N,)`` and
+    from ground-truth samples to the reconstruction ``(M,)``.
+
+    Raises:
+        InputError: either is empty.
+    """
+    if len(to_gt) == 0 or len(to_rec) == 0:
+        field = "reconstructed" if len(to_gt) == 0 else "ground_truth"
+        raise InputError("no points to compare (culled away?)", field=field)
     precision = float(np.mean(to_gt < threshold_m))
     recall = float(np.mean(to_rec < threshold_m))
     fscore = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)

@@ -19,7 +19,9 @@ from eval.geometry import (
     DEFAULT_SAMPLES,
     compare_point_sets,
     frustum_mask,
+    metrics_from_distances,
     sample_surface,
+    surface_distances,
     visible_mask,
 )
 from eval.trajectory_metrics import pose_alignment
@@ -151,6 +153,25 @@ def culled_samples(
     gt_points = gt_points[frustum_mask(gt_points, poses, scene.camera, far=far_m)]
     visible = visible_mask(gt_points, truth.mesh, poses, scene.camera, max_range_m=far_m)
     return CulledSamples(rec_points, gt_points, visible)
+
+
+def compare_culled_surfaces(
+    points: CulledSamples, reconstructed: trimesh.Trimesh, truth: GroundTruth, threshold_m: float = 0.1
+) -> dict[str, float]:
+    """The metrics of :func:`compare_culled` with each sample's distance to the other *surface*
+    (point to mesh) instead of to the other mesh's nearest sample: ``chamfer_surface_m``,
+    ``fscore_surface``, ... and ``chamfer_visible_surface_m``, ``fscore_visible_surface``, ...
+
+    Sample to sample, a sample on the true surface is as far from the nearest other sample as
+    the samples are apart, and with a fixed count that grows with the scene: 200 000 samples
+    of the virtual street's 34 000 m² lie ~0.4 m apart, so a mesh 87 % within 10 cm of the
+    street scores a precision of 0.13 (0.77 surface to surface); in the room (~130 m², ~3 cm
+    apart) the two differ by about 0.01 in F and 1.3 cm in Chamfer."""
+    to_gt = surface_distances(points.reconstructed, truth.mesh)
+    to_rec = surface_distances(points.ground_truth, reconstructed)
+    frustum = metrics_from_distances(to_gt, to_rec, threshold_m)
+    visible = metrics_from_distances(to_gt, to_rec[points.visible], threshold_m)
+    return {**frustum.named("surface"), **visible.named("visible_surface")}
 
 
 def compare_culled(points: CulledSamples, threshold_m: float = 0.1) -> dict[str, float]:

@@ -79,6 +79,10 @@ GT_FIELDS = (
     "recall_visible",
     "accuracy_visible_m",
     "completeness_visible_m",
+    *(f"{name}_surface" for name in ("fscore", "precision", "recall")),
+    *(f"{name}_surface_m" for name in ("chamfer", "accuracy", "completeness")),
+    *(f"{name}_visible_surface" for name in ("fscore", "precision", "recall")),
+    *(f"{name}_visible_surface_m" for name in ("chamfer", "accuracy", "completeness")),
     "gt_visible_fraction",
     "gt_alignment_rmse_m",
     "physics_probes",
@@ -300,10 +304,11 @@ def _geometry(
     samples: int,
     metrics: dict,
 ) -> PointDistances:
-    from eval.ground_truth import compare_culled, culled_samples
+    from eval.ground_truth import compare_culled, compare_culled_surfaces, culled_samples
 
     points = culled_samples(reconstructed, scene, truth, samples)
     metrics.update(compare_culled(points, threshold_m))
+    metrics.update(compare_culled_surfaces(points, reconstructed, truth, threshold_m))
     rec, gt = points.reconstructed, points.ground_truth
     to_gt, _ = cKDTree(gt).query(rec, workers=-1)
     to_rec, _ = cKDTree(rec).query(gt, workers=-1)

@@ -55,7 +55,9 @@ def evaluate_run_command(
         f"test views ({m['n_test_views']}): PSNR {psnr}, SSIM {ssim}, LPIPS {lpips}; "
         f"LiDAR depth error median {depth}",
         f"geometry at {m['threshold_m']:g} m: F-score {_text(m['fscore'])} (visible GT "
-        f"{_text(m['fscore_visible'])}), Chamfer-L1 {_text(m['chamfer_m'], ' cm', 100, 2)}",
+        f"{_text(m['fscore_visible'])}), Chamfer-L1 {_text(m['chamfer_m'], ' cm', 100, 2)}; sample to "
+        f"surface: F-score {_text(m['fscore_surface'])} (visible GT {_text(m['fscore_visible_surface'])}), "
+        f"Chamfer-L1 {_text(m['chamfer_surface_m'], ' cm', 100, 2)}",
         f"against the test keyframes' LiDAR at {_text(m['lidar_threshold_m'], ' m', digits=2)}: F-score "
         f"{_text(m['lidar_fscore'])} (precision {_text(m['lidar_precision'])}, recall "
         f"{_text(m['lidar_recall'])}), median distance {_text(m['lidar_distance_median_m'], ' cm', 100, 1)}",

@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from eval.geometry import compare_meshes, compare_point_sets, frustum_mask
+from eval.geometry import (
+    compare_meshes,
+    compare_point_sets,
+    frustum_mask,
+    metrics_from_distances,
+    sample_surface,
+    surface_distances,
+)
 from rig import CameraModel, InputError, make_transform
 
 
@@ -91,3 +98,19 @@ def test_named_metrics_put_the_variant_before_the_unit():
     visible = {"accuracy_visible_m", "completeness_visible_m", "chamfer_visible_m"}
     visible |= {"precision_visible", "recall_visible", "fscore_visible"}
     assert set(metrics.named("visible")) == visible
+
+
+def test_distances_to_the_surface_do_not_depend_on_the_scene_size() -> None:
+    """A 2 x 2 m patch of a 200 x 200 m ground: 200 000 samples of the ground lie ~0.45 m apart,
+    so sample to sample the patch, exactly on the ground, looks mostly farther than 10 cm; sample
+    to surface it is all within."""
+    ground = trimesh.creation.box([200, 200, 0.01])
+    patch = trimesh.creation.box([2, 2, 0.01])
+    rec, gt = sample_surface(patch, 20_000, seed=0), sample_surface(ground, 200_000, seed=1)
+    assert compare_point_sets(rec, gt, 0.1).precision < 0.3
+    to_gt = surface_distances(rec, ground)
+    assert to_gt.max() < 0.006  # (the patch's sides lie inside the 1 cm thick ground)
+    metrics = metrics_from_distances(to_gt, surface_distances(gt, patch), 0.1)
+    assert metrics.precision == 1.0 and metrics.recall < 0.01
+    with pytest.raises(InputError):
+        metrics_from_distances(np.zeros(0), np.zeros(3), 0.1)

@@ -69,6 +69,11 @@ def test_every_contract_field_and_sensible_numbers_against_the_ground_truth(tiny
     assert metrics["fscore"] > 0.9 and metrics["precision"] > 0.9 and metrics["recall"] > 0.9
     assert metrics["chamfer_m"] < 0.05
     assert metrics["fscore_visible"] > 0.9 and 0 < metrics["gt_visible_fraction"] <= 1
+    # A sample is never farther from a surface than from that surface's nearest sample.
+    for name in ("precision", "recall", "fscore", "precision_visible", "recall_visible", "fscore_visible"):
+        surface = name.replace("_visible", "_visible_surface") if "visible" in name else f"{name}_surface"
+        assert metrics[surface] >= metrics[name] - 1e-6
+    assert metrics["chamfer_surface_m"] <= metrics["chamfer_m"]
     assert metrics["gt_alignment_rmse_m"] < 1e-6
     assert 10 < metrics["psnr"] < 60 and 0 < metrics["ssim"] <= 1
     assert metrics["depth_error_median_m"] < 0.05 and metrics["depth_error_pixels"] > 100
