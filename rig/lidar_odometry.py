@@ -1,6 +1,7 @@
 """LiDAR odometry on raw (not de-skewed) sweeps, each pose stamped when it holds.
 
-Used by the time-offset calibration (the LiDAR clock's motion) and the fallback mapper. Each sweep
+:class:`SweepOdometry` is the fallback mapper's; :func:`sweep_information` is shared with the
+time-offset calibration's KISS-ICP odometry (:mod:`calib.kiss_odometry`). Each sweep
 is registered to a map of the sweeps before it by voxelized GICP (small_gicp's VGICP: every map
 voxel a Gaussian of the points that fell in it, every sweep point with the covariance of its
 neighbours), starting from a constant-velocity prediction. Plane-to-plane residuals do not care

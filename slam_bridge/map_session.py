@@ -53,7 +53,13 @@ class MapSummary:
                 else ""
             ),
         ]
-        return lines + [f"  - {reason}" for reason in q.reasons]
+        lines += [f"  - {reason}" for reason in q.reasons]
+        if self.faces == 0:
+            lines.append(
+                f"the mesh is empty: its {self.scans_used} sweeps saw too little of the same surfaces for "
+                "the TSDF to keep any (lts prepare needs a mesh: record longer, or import a mapper's output)"
+            )
+        return lines
 
 
 def map_session(

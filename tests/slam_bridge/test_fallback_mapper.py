@@ -120,3 +120,16 @@ def test_thinned_sweeps_keep_every_ring() -> None:
     per_column = np.bincount(chosen // 64, minlength=1024)
     assert np.all(per_column >= 8)
     assert thinned(100, 200) == slice(None)
+
+
+def test_an_empty_mesh_is_said_in_the_summary() -> None:
+    """A few sweeps map a trajectory but no surface the TSDF keeps: the summary says so and what to do."""
+    from slam_bridge.map_session import MapSummary
+    from slam_bridge.mapping_quality import MappingQuality
+
+    settings = {"voxel_m": 0.6, "map_voxel_m": 1.8, "max_range_m": 60.0, "tsdf_voxel_m": 0.24}
+    summary = MapSummary(
+        "slam", 3, 3, 0, 0.5, 0.0, {**settings, "static_reregistration": True}, MappingQuality("ok")
+    )
+    assert "the mesh is empty" in summary.describe()[-1]
+    assert not any("empty" in line for line in MapSummary(**{**summary.__dict__, "faces": 10}).describe())
