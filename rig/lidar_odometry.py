@@ -98,7 +98,7 @@ def covariance_threads() -> int:
     return int(value) if value.isdigit() and int(value) > 0 else (os.cpu_count() or 1)
 
 
-def _nearest_rotation(T: np.ndarray) -> np.ndarray:
+def nearest_rotation(T: np.ndarray) -> np.ndarray:
     """``T`` ``(4, 4)`` with its rotation block projected onto the nearest rotation: products of
     poses drift from orthonormality, and composing a drifted pose with its transpose-inverse
     compounds the drift geometrically until the poses blow up."""
@@ -136,7 +136,7 @@ class SweepOdometry:
         if len(self._poses) < 2:
             return self._poses[-1] if self._poses else np.eye(4)
         before, last = self._poses[-2], self._poses[-1]
-        return _nearest_rotation(last @ invert(before) @ last)
+        return nearest_rotation(last @ invert(before) @ last)
 
     def register_rigid(self, points: np.ndarray) -> np.ndarray:
         """Register points ``(N, 3)`` float64 of a sweep already de-skewed to one instant; returns
@@ -171,7 +171,7 @@ class SweepOdometry:
                 num_threads=ODOMETRY_THREADS,
             )  # fmt: skip
             # (A copy: the array views memory that the result frees.)
-            pose, inliers = _nearest_rotation(np.array(result.T_target_source)), result.num_inliers
+            pose, inliers = nearest_rotation(np.array(result.T_target_source)), result.num_inliers
         self.corrections_m.append(float(np.linalg.norm(pose[:3, 3] - guess[:3, 3])))
         self.inlier_fractions.append(inliers / max(sweep.size(), 1))
         self._map.insert(sweep, pose)
