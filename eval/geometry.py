@@ -152,9 +152,15 @@ def compare_point_sets(
             raise InputError(f"expected points of shape (N, 3), got {points.shape}", field=name)
         if not np.all(np.isfinite(points)):
             raise InputError("points hold NaN or Inf", field=name)
+    return metrics_from_distances(*sample_distances(reconstructed, ground_truth), threshold_m)
+
+
+def sample_distances(reconstructed: np.ndarray, ground_truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each reconstruction sample's distance to the nearest ground-truth sample ``(N,)`` and each
+    ground-truth sample's to the nearest reconstruction sample ``(M,)``."""
     to_gt, _ = cKDTree(ground_truth).query(reconstructed, workers=-1)
     to_rec, _ = cKDTree(reconstructed).query(ground_truth, workers=-1)
-    return metrics_from_distances(to_gt, to_rec, threshold_m)
+    return to_gt, to_rec
 
 
 def metrics_from_distances(to_gt: np.ndarray, to_rec: np.ndarray, threshold_m: float) -> GeometricMetrics:
@@ -164,9 +170,10 @@ def metrics_from_distances(to_gt: np.ndarray, to_rec: np.ndarray, threshold_m: f
     Raises:
         InputError: either is empty.
     """
-    if len(to_gt) == 0 or len(to_rec) == 0:
-        field = "reconstructed" if len(to_gt) == 0 else "ground_truth"
-        raise InputError("no points to compare (culled away?)", field=field)
+    if len(to_gt) == 0:
+        raise InputError("reconstruction has no points to compare", field="reconstructed")
+    if len(to_rec) == 0:
+        raise InputError("ground truth has no points to compare (culled away?)", field="ground_truth")
     precision = float(np.mean(to_gt < threshold_m))
     recall = float(np.mean(to_rec < threshold_m))
     fscore = 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)

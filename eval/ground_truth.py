@@ -10,6 +10,7 @@ included, so a near-straight path does not leave a rotation free). A mesh file i
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from eval.geometry import (
     compare_point_sets,
     frustum_mask,
     metrics_from_distances,
+    sample_distances,
     sample_surface,
     surface_distances,
     visible_mask,
@@ -137,6 +139,13 @@ class CulledSamples:
     ground_truth: np.ndarray
     visible: np.ndarray
 
+    @cached_property
+    def distances(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each reconstruction sample's distance to the nearest ground-truth sample ``(N,)`` and
+        back ``(M,)`` (:func:`~eval.geometry.sample_distances`), found once for the metrics and
+        the report's pictures."""
+        return sample_distances(self.reconstructed, self.ground_truth)
+
 
 def culled_samples(
     reconstructed: trimesh.Trimesh,
@@ -180,7 +189,7 @@ def compare_culled(points: CulledSamples, threshold_m: float = 0.1) -> dict[str,
     ``fscore``, ... against the ground truth in the frusta, the same as ``chamfer_visible_m``,
     ``fscore_visible``, ... against the ground truth some training camera sees (the back of a box
     is in the frusta but no image shows it), and ``gt_visible_fraction``."""
-    frustum = compare_point_sets(points.reconstructed, points.ground_truth, threshold_m)
+    frustum = metrics_from_distances(*points.distances, threshold_m)
     visible = compare_point_sets(points.reconstructed, points.ground_truth[points.visible], threshold_m)
     return {
         **frustum.named(),

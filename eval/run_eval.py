@@ -34,7 +34,6 @@ from pathlib import Path
 import numpy as np
 import torch
 import trimesh
-from scipy.spatial import cKDTree
 
 from eval.geometry import DEFAULT_SAMPLES
 from eval.leaned_views import hit_mask, leaned_poses
@@ -309,10 +308,10 @@ def _geometry(
     points = culled_samples(reconstructed, scene, truth, samples)
     metrics.update(compare_culled(points, threshold_m))
     metrics.update(compare_culled_surfaces(points, reconstructed, truth, threshold_m))
-    rec, gt = points.reconstructed, points.ground_truth
-    to_gt, _ = cKDTree(gt).query(rec, workers=-1)
-    to_rec, _ = cKDTree(rec).query(gt, workers=-1)
-    return PointDistances(rec, to_gt, gt, to_rec, float(threshold_m), truth.T_gt_world)
+    to_gt, to_rec = points.distances
+    return PointDistances(
+        points.reconstructed, to_gt, points.ground_truth, to_rec, float(threshold_m), truth.T_gt_world
+    )
 
 
 def _lidar(
