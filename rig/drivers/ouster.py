@@ -160,7 +160,7 @@ class OusterDriver(Driver):
         frames = next(self._iter, None)
         if frames is None:
             self._iter = None
-            self._replayed_all = self.pcap is not None and not self.hostname
+            self._replayed_all = not self.hostname  # a pcap (the constructor asks for one or the other)
             return []
         frame = frames[0]
         self.health.packets += 1
