@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rig.lidar_odometry import SweepInformation, sweep_information
+from rig.lidar_odometry import ODOMETRY_THREADS, SweepInformation, sweep_information
 
 #: Map points kept per voxel (KISS-ICP's default is 20): only the motion between sweeps is needed.
 #: On the virtual rig's 20 s room session (0.1 m voxels) the odometry over 200 sweeps took 16–17 s
@@ -33,8 +33,6 @@ class KissOdometry:
     def __init__(self, voxel_size: float, max_range: float) -> None:
         from kiss_icp.config import KISSConfig
         from kiss_icp.kiss_icp import KissICP
-
-        from rig.lidar_odometry import ODOMETRY_THREADS
 
         config = KISSConfig()
         config.data.max_range = max_range
