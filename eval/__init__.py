@@ -21,6 +21,7 @@ _EXPORTS = {
     "download_weights": "eval.lpips_weights",
     "lpips": "eval.photometric",
     "psnr": "eval.photometric",
+    "color_aligned": "eval.photometric",
     "ssim": "eval.photometric",
     "HoleResult": "eval.leaned_views",
     "leaned_poses": "eval.leaned_views",

@@ -84,6 +84,17 @@ def psnr(
     return -20.0 * math.log10(peak) - 10.0 * math.log10(float(torch.mean((diff / peak) ** 2)))
 
 
+def color_aligned(rendered: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The ``(H, W, 3)`` float render in [0, 1] mapped by the 3×3 colour matrix (a gain per channel
+    and their mixing: exposure and white balance) that best fits it to ``target`` ``(H, W, 3)`` in
+    the least-squares sense, clipped to [0, 1]: the render with the test image's exposure, which no
+    method can know from training (:mod:`splat.exposure`). Black pixels (holes) stay black and do
+    not change the fit."""
+    samples = rendered.reshape(-1, 3).astype(np.float64)
+    matrix = np.linalg.lstsq(samples, target.reshape(-1, 3).astype(np.float64), rcond=None)[0]  # (3, 3)
+    return np.clip(samples @ matrix, 0.0, 1.0).reshape(rendered.shape).astype(rendered.dtype)
+
+
 def _gaussian_window(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
     x = torch.arange(SSIM_WINDOW, dtype=dtype, device=device) - SSIM_WINDOW // 2
     g = torch.exp(-(x**2) / (2 * SSIM_SIGMA**2))

@@ -36,6 +36,7 @@ SECTIONS = {
 _GROUPS = {
     "Photometry (held-out views)": [
         ("psnr", "PSNR", "db"),
+        ("psnr_color_aligned", "PSNR, each view's colours fitted (exposure)", "db"),
         ("ssim", "SSIM", "ratio"),
         ("lpips", "LPIPS", "ratio"),
         ("depth_error_median_m", "LiDAR depth error, median", "m"),

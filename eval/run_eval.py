@@ -41,7 +41,7 @@ from eval.lidar_agreement import lidar_agreement
 from eval.lpips_net import LpipsAlex
 from eval.lpips_weights import HOW_TO_GET, load_lpips
 from eval.moving_pixels import mover_names, moving_pixel_masks
-from eval.photometric import lpips, psnr, ssim
+from eval.photometric import color_aligned, lpips, psnr, ssim
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from rig.mesh_rays import mesh_raycaster
@@ -204,18 +204,24 @@ def _photometric(
     metrics: dict,
     reasons: dict,
     moving: list[np.ndarray] | None = None,
+    color_maps: dict[str, np.ndarray] | None = None,
 ) -> list[ViewImages]:
     """PSNR, SSIM, LPIPS and depth errors of the test views into ``metrics``; also PSNR over the
     pixels above the LiDAR's reach and, with ``moving`` (one ``(H, W)`` mask per test view of the
-    pixels that show a moving object), over the static pixels."""
+    pixels that show a moving object), over the static pixels. A test view with a colour matrix
+    ``(3, 3)`` in ``color_maps`` (by name: its exposure, :mod:`splat.exposure`) is scored through it."""
     views, psnrs, ssims, lpips_values, depth_errors = [], [], [], [], []
-    above_psnrs, static_psnrs, moving_fractions = [], [], []
+    above_psnrs, static_psnrs, moving_fractions, aligned_psnrs = [], [], [], []
     for i, keyframe in enumerate(tests):
         lidar = scene.depth(keyframe)
         above = scored_background_mask(torch.as_tensor(lidar, device=model.device))
         out = _render(model, scene, keyframe.T_world_cam, above)
         render = _as_rgb(out.rgb)
+        if color_maps and keyframe.name in color_maps:
+            render = np.clip(render @ color_maps[keyframe.name].T, 0.0, 1.0).astype(render.dtype)
         target = scene.image(keyframe).astype(np.float32) / 255.0
+        alpha = out.alpha.detach().cpu().numpy()
+        aligned_psnrs.append(psnr(color_aligned(render, target), target))
         if above is not None and bool(above.any()):
             above_psnrs.append(psnr(render, target, mask=above))
         if moving is not None:
@@ -223,7 +229,7 @@ def _photometric(
             static_psnrs.append(psnr(render, target, mask=~moving[i]))
         views.append(
             ViewImages(
-                keyframe.name, render, target, out.alpha.detach().cpu().numpy(), psnr(render, target),
+                keyframe.name, render, target, alpha, psnr(render, target),
                 ssim(render, target),
             )
         )  # fmt: skip
@@ -231,12 +237,12 @@ def _photometric(
         ssims.append(views[-1].ssim)
         if lpips_network is not None:
             lpips_values.append(lpips(render, target, lpips_network).value)
-        alpha = out.alpha.detach().cpu().numpy()
         valid = (lidar > 0) & (alpha > ALPHA_SURFACE)
         depth = out.expected_depth().detach().cpu().numpy()[valid]
         depth_errors.append(np.abs(depth - lidar[valid]))
     metrics["psnr"] = float(np.mean(psnrs))
     metrics["ssim"] = float(np.mean(ssims))
+    metrics["psnr_color_aligned"] = float(np.mean(aligned_psnrs))
     metrics["psnr_above_lidar"] = float(np.mean(above_psnrs)) if above_psnrs else None
     if not above_psnrs:
         reasons["psnr_above_lidar"] = "no test view has pixels above its LiDAR returns"
@@ -426,7 +432,10 @@ def evaluate_run(
         log(f"finding the pixels of the moving objects in {len(tests)} test views")
         moving = moving_pixel_masks(movers, scene.camera, np.array([k.t_ns for k in tests]))
     log(f"rendering {len(tests)} test views")
-    views = _photometric(model, scene, tests, lpips_network, metrics, reasons, moving)
+    color_maps, metrics["test_color_maps"] = layout.read_color_maps(run_dir)
+    if not color_maps:
+        reasons["test_color_maps"] = "the run learnt no colour maps (lts train --no-exposure, or older)"
+    views = _photometric(model, scene, tests, lpips_network, metrics, reasons, moving, color_maps)
 
     metrics.update(dict.fromkeys(GT_FIELDS))
     if truth is not None:

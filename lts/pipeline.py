@@ -69,6 +69,7 @@ class ReconstructOptions:
     topics: str = "auto"
     span: TimeSpan | None = None
     camera: int | None = None
+    exposure: bool = True
 
     @property
     def paths(self) -> list[Path]:
@@ -251,6 +252,7 @@ def build_scene(
 def train_key(o: ReconstructOptions) -> list[str]:
     """The training options as ``lts train`` takes them."""
     key = ["--method", o.method, "--preset", o.preset, "--seed", str(o.seed), "--device", o.device]
+    key += [] if o.exposure else ["--no-exposure"]
     return key + (["--iterations", str(o.iterations)] if o.iterations is not None else [])
 
 
@@ -258,7 +260,9 @@ def train_config(o: ReconstructOptions) -> TrainConfig:
     """The :class:`~splat.config.TrainConfig` that ``lts train`` builds from ``o``'s options."""
     from splat.config import config_from_options
 
-    return config_from_options(o.method, o.preset, seed=o.seed, device=o.device, iterations=o.iterations)
+    return config_from_options(
+        o.method, o.preset, seed=o.seed, device=o.device, iterations=o.iterations, exposure=o.exposure
+    )
 
 
 def train_run(

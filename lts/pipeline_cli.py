@@ -103,6 +103,9 @@ def reconstruct_command(
     iterations: int | None = typer.Option(None, min=1, help="Override the preset's iteration count."),
     device: str = typer.Option("cpu", help="cpu or cuda for training."),
     seed: int = typer.Option(0, help="Training seed."),
+    exposure: bool = typer.Option(
+        True, "--exposure/--no-exposure", help="Learn a colour map per training image (see lts train --help)."
+    ),
     keyframe_interval: float | None = typer.Option(
         None, "--keyframe-interval", help="Seconds between keyframes (lts prepare's default: 0.5)."
     ),
@@ -128,6 +131,7 @@ def reconstruct_command(
     options = ReconstructOptions(
         session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval,
         max_size=max_size, downscale=downscale, topics=topics, span=time_span(start, duration), camera=camera,
+        exposure=exposure,
     )  # fmt: skip
     result, _ = _run_stages(lambda: (reconstruct(options, _log), []))
     summary = _summary(result)

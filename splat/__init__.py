@@ -28,6 +28,7 @@ _EXPORTS = {
     "train": "splat.trainer",
     "background_image": "splat.background",
     "constant_background": "splat.background",
+    "ViewExposures": "splat.exposure",
     "export_mesh": "splat.export",
     "decouple_and_scale": "splat.init_mesh",
     "ground_fill": "splat.init_mesh",

@@ -61,12 +61,19 @@ class TrainConfig(BaseModel):
         8.0, gt=0, description="LiDAR returns beyond this count their depth error relative to their range"
     )
     w_distortion: float = Field(0.01, ge=0)
+    exposure: bool = Field(
+        True,
+        description="learn an affine colour map per training view (auto-exposure, white balance; "
+        "splat.exposure), pulled towards the identity by w_exposure",
+    )
+    w_exposure: float = Field(0.01, ge=0, description="weight of the colour maps' prior towards the identity")
 
     # Learning rates (Adam) and their schedule.
     lr_vertices: float = Field(3e-4, ge=0)
     lr_colors: float = Field(0.02, ge=0)
     lr_opacity: float = Field(0.05, ge=0)
     lr_background: float = Field(0.05, ge=0)
+    lr_exposure: float = Field(0.01, ge=0)
     vertex_lr_delay: float = Field(0.05, ge=0, le=1, description="vertex lr is 0 for this fraction")
     lr_final_factor: float = Field(0.1, gt=0, le=1)
 
@@ -198,10 +205,13 @@ def config_from_options(
     iterations: int | None = None,
     max_triangles: int | None = None,
     coarse_until: float | None = None,
+    exposure: bool = True,
 ) -> TrainConfig:
     """The config ``lts train`` builds from its options (None: the preset's value), so that
     ``lts reconstruct`` can tell whether an existing run was made with the same ones."""
-    overrides: dict[str, Any] = {"seed": seed, "device": device, "init_noise_m": init_noise_m}
+    overrides: dict[str, Any] = {
+        "seed": seed, "device": device, "init_noise_m": init_noise_m, "exposure": exposure
+    }  # fmt: skip
     if iterations is not None:
         overrides["iterations"] = iterations
     if max_triangles is not None:

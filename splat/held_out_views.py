@@ -15,13 +15,13 @@ from splat.views import View
 
 @torch.no_grad()
 def evaluate_views(model: TriangleModel, views: list[View], camera) -> dict[str, float]:
-    """Mean test PSNR (dB), SSIM (:func:`splat.losses.ssim_map`: for early stopping and curves — the
-    reported numbers come from :mod:`eval`) and median |expected depth - LiDAR| (m) over LiDAR pixels
-    with alpha > 0.5."""
+    """Mean test PSNR (dB) and SSIM (:func:`splat.losses.ssim_map`) of the renders through each view's
+    colour map (for early stopping and curves — the reported numbers come from :mod:`eval`) and
+    median |expected depth - LiDAR| (m) over LiDAR pixels with alpha > 0.5."""
     psnrs, ssims, depth_errors = [], [], []
     for view in views:
         out = model.render(camera, view.T_cam_world, background_mask=view.background_mask)
-        rgb = out.rgb.clamp(0, 1)
+        rgb = view.scored_rgb(out.rgb)
         mse = float(((rgb - view.image) ** 2).mean())
         psnrs.append(-10 * np.log10(max(mse, 1e-12)))
         ssims.append(1 - float(dssim(rgb, view.image)))
@@ -41,7 +41,7 @@ def write_renders(model: TriangleModel, views: list[View], camera, folder: Path)
     paths = []
     for view in views:
         out = model.render(camera, view.T_cam_world, background_mask=view.background_mask)
-        rgb = out.rgb.clamp(0, 1).cpu().numpy()
+        rgb = view.scored_rgb(out.rgb).cpu().numpy()
         path = folder / f"{view.name}.png"
         cv2.imwrite(str(path), cv2.cvtColor((rgb * 255 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR))
         paths.append(path)

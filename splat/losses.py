@@ -30,6 +30,7 @@ class LossTerms:
     normal: Tensor
     opacity: Tensor
     distortion: Tensor
+    exposure: Tensor
 
     def as_floats(self) -> dict[str, float]:
         return {name: float(value.detach()) for name, value in self.__dict__.items()}
@@ -140,6 +141,7 @@ def training_loss(
     config: TrainConfig,
     moving_mask: Tensor | None = None,
     target_moments: Tensor | None = None,
+    exposure_prior: Tensor | None = None,
 ) -> LossTerms:
     """All loss terms of one view.
 
@@ -153,6 +155,8 @@ def training_loss(
             steps and fade out every triangle no view sees — geometry only the LiDAR saw).
         moving_mask: ``(H, W)`` bool, pixels of moving objects left out of L1 and D-SSIM, or None.
         target_moments: :func:`image_moments` of ``image`` when they are at hand (else computed).
+        exposure_prior: the view's colour map's distance from the identity
+            (:meth:`splat.exposure.ViewExposures.prior`), or None when the run learns no maps.
     """
     zero = image.new_zeros(())
     keep = None if moving_mask is None or not bool(moving_mask.any()) else ~moving_mask
@@ -168,6 +172,7 @@ def training_loss(
     in_view = out.max_weight > 0
     opacity_reg = masked_mean(opacity, in_view) if config.w_opacity > 0 and bool(in_view.any()) else zero
     distortion = out.distortion.mean() if config.w_distortion > 0 else zero
+    exposure = zero if exposure_prior is None else exposure_prior
     total = (
         (1 - config.lambda_dssim) * l1
         + config.lambda_dssim * ds
@@ -175,5 +180,6 @@ def training_loss(
         + config.w_normal * normal
         + config.w_depth * depth
         + config.w_distortion * distortion
+        + config.w_exposure * exposure
     )
-    return LossTerms(total, l1, ds, depth, normal, opacity_reg, distortion)
+    return LossTerms(total, l1, ds, depth, normal, opacity_reg, distortion, exposure)

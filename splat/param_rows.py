@@ -37,9 +37,13 @@ def replace_rows(
         model.params[name] = new
 
 
-def make_optimizer(model: TriangleModel, lrs: dict[str, float]) -> torch.optim.Adam:
+def make_optimizer(
+    model: TriangleModel, lrs: dict[str, float], exposure: Tensor | None = None
+) -> torch.optim.Adam:
     """Adam with one parameter group per model parameter (named ``name``), plus one named
-    ``background`` when the model has a background, learning rates ``lrs`` (name → lr).
+    ``background`` when the model has a background and one named ``exposure`` for the training
+    views' colour maps ``(V, 3, 3)`` (:mod:`splat.exposure`) when given, learning rates ``lrs``
+    (name → lr).
 
     PyTorch's fused Adam: one kernel over all parameters instead of a dozen tensor operations per
     parameter (on the CPU at 47k triangles 0.4 ms a step instead of 6 ms); its steps agree with the
@@ -47,4 +51,6 @@ def make_optimizer(model: TriangleModel, lrs: dict[str, float]) -> torch.optim.A
     groups = [{"params": [model.params[name]], "lr": lrs[name], "name": name} for name in model.params]
     if model.background is not None:
         groups.append({"params": [model.background], "lr": lrs["background"], "name": "background"})
+    if exposure is not None:
+        groups.append({"params": [exposure], "lr": lrs["exposure"], "name": "exposure"})
     return torch.optim.Adam(groups, eps=1e-15, fused=True)

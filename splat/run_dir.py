@@ -9,7 +9,9 @@
     checkpoints/last.pt    the latest checkpoint (model, optimiser, statistics, RNG, counters)
     model.pt               the final model (splat.load_model)
     summary.json           TrainResult: time, triangles, test metrics, skips, densification log
-    renders/NAME.png       test-view renders of the final model
+    renders/NAME.png       test-view renders of the final model (through their colour maps)
+    exposure.json          the colour map of every keyframe (splat.exposure): {"test_views": how the
+                           held-out ones were chosen, "maps": {NAME: 3x3}}; absent without --exposure
     mesh.ply|obj|glb       the exported triangles (opaque); collision.ply (+ .obj) for physics
 """
 
@@ -17,6 +19,8 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+
+import numpy as np
 
 from rig.errors import InputError
 
@@ -27,6 +31,7 @@ CHECKPOINT = "checkpoints/last.pt"
 MODEL = "model.pt"
 SUMMARY = "summary.json"
 RENDERS = "renders"
+EXPOSURE = "exposure.json"
 
 
 def config_path(run_dir: Path) -> Path:
@@ -51,6 +56,10 @@ def model_path(run_dir: Path) -> Path:
 
 def summary_path(run_dir: Path) -> Path:
     return Path(run_dir) / SUMMARY
+
+
+def exposure_path(run_dir: Path) -> Path:
+    return run_dir / EXPOSURE
 
 
 def renders_dir(run_dir: Path) -> Path:
@@ -83,3 +92,22 @@ def read_metrics(run_dir: str | Path) -> list[dict]:
         except json.JSONDecodeError as exc:
             raise InputError(f"not a JSON line ({exc})", path=path, line=number) from None
     return rows
+
+
+def read_color_maps(run_dir: Path) -> tuple[dict[str, np.ndarray], str | None]:
+    """The colour matrices ``(3, 3)`` by keyframe name in ``RUN_DIR/exposure.json`` and how the
+    held-out views' were chosen (empty and None when the run learnt none); an error naming the file
+    when it is malformed."""
+    path = exposure_path(run_dir)
+    if not path.is_file():
+        return {}, None
+    try:
+        data = json.loads(path.read_text())
+        maps = {
+            name: np.asarray(matrix, dtype=np.float64).reshape(3, 3) for name, matrix in data["maps"].items()
+        }
+        return maps, str(data["test_views"])
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise InputError(
+            f"expected {{'test_views': ..., 'maps': {{NAME: 3x3}}}} ({exc})", path=path, field="maps"
+        ) from None

@@ -37,6 +37,12 @@ def train_command(
         "start; 0: full resolution throughout); "
         f"by default {TrainConfig.model_fields['coarse_until'].default}.",
     ),
+    exposure: bool = typer.Option(
+        True,
+        "--exposure/--no-exposure",
+        help="Learn a colour map per training image (auto-exposure, white balance); --no-exposure for a "
+        "camera with fixed exposure and white balance.",
+    ),
     seed: int = typer.Option(0, help="Seed of view order, sampling and noise."),
     device: str = typer.Option("cpu", help="cpu or cuda (the matching rasteriser kernel is used)."),
     resume: bool = typer.Option(
@@ -56,7 +62,7 @@ def train_command(
 
     config = config_from_options(
         method, preset, seed=seed, device=device, init_noise_m=init_noise, iterations=iterations,
-        max_triangles=max_triangles, coarse_until=half_resolution,
+        max_triangles=max_triangles, coarse_until=half_resolution, exposure=exposure,
     )  # fmt: skip
     try:
         result = train(scene, out, config, resume=resume, progress=progress)
@@ -73,6 +79,10 @@ def train_command(
         f"SSIM {test.get('test_ssim', float('nan')):.3f}; rejected steps {result.rejected_steps}",
         highlight=False,
     )
+    if result.exposure:
+        e = result.exposure
+        console.print(f"  colour maps per training image: gain {e['gain_min']:.2f}-{e['gain_max']:.2f}, "
+                      f"channel mixing up to {e['mixing_max']:.3f}", highlight=False)  # fmt: skip
     for line in result.skips:
         console.print(f"  skipped: {line}", highlight=False)
     console.print(f"  mesh: {out / 'mesh.ply'}  collision: {out / 'collision.ply'}", highlight=False)

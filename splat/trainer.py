@@ -11,7 +11,7 @@ import json
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,12 +26,14 @@ from splat import run_dir as layout
 from splat.background_mask import scored_background_mask
 from splat.coarse_views import coarse_iterations, half_camera, half_view
 from splat.config import TrainConfig, load_config
+from splat.exposure import ViewExposures, held_out_maps
 from splat.finite import all_finite
 from splat.held_out_views import evaluate_views, write_renders
 from splat.initialise import build_model, initial_triangles
 from splat.losses import image_moments, training_loss
 from splat.model import TriangleModel, save_model
 from splat.param_rows import make_optimizer
+from splat.raster import RenderOutput
 from splat.schedule import final_phase_start, schedule_at
 from splat.strategy import DensifyReport, strategy_for
 from splat.views import View, load_views, redundant_keyframes
@@ -62,6 +64,7 @@ class TrainResult:
     skips: list[str] = field(default_factory=list)
     densification: list[dict] = field(default_factory=list)
     export: dict = field(default_factory=dict)
+    exposure: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -86,6 +89,7 @@ def _learning_rates(config: TrainConfig) -> dict[str, float]:
         "colors": config.lr_colors,
         "opacity": config.lr_opacity,
         "background": config.lr_background,
+        "exposure": config.lr_exposure,
     }
 
 
@@ -112,10 +116,10 @@ def _view_order(seed: int, epoch: int, n: int) -> np.ndarray:
     return np.random.default_rng([seed, epoch]).permutation(n)
 
 
-def _finite_step(loss: torch.Tensor, model: TriangleModel) -> bool:
+def _finite_step(loss: torch.Tensor, params: list[torch.Tensor]) -> bool:
     if not bool(torch.isfinite(loss)):
         return False
-    return all(p.grad is None or all_finite(p.grad) for p in model.trainable())
+    return all(p.grad is None or all_finite(p.grad) for p in params)
 
 
 class Trainer:
@@ -133,6 +137,7 @@ class Trainer:
         self.config = config
         self.log = log
         self.state = _State()
+        self.exposures: ViewExposures | None = None
         # The coarse start (splat.coarse_views): how many iterations, the camera and the views of it.
         self._coarse_iterations = coarse_iterations(self.scene.camera, config)
         self._half_camera = half_camera(self.scene.camera)
@@ -191,7 +196,9 @@ class Trainer:
         self.model = build_model(
             init, self.config, self.train_views, self.scene.camera, lambda m: self.log(f"init: {m}")
         )
-        self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
+        if self.config.exposure:
+            self.exposures = ViewExposures.identity(len(self.train_views), device=self.config.device)
+        self.optimizer = make_optimizer(self.model, _learning_rates(self.config), self._exposure_offsets())
         self.strategy.initialize(self.model)
         layout.metrics_path(self.run_dir).write_text("")
         if self._coarse_iterations > 0:
@@ -240,6 +247,7 @@ class Trainer:
             "optimizer": self.optimizer.state_dict(),
             "strategy": self.strategy.state_dict(),
             "state": asdict(self.state),
+            "exposure": None if self.exposures is None else self.exposures.offsets.detach().cpu().clone(),
         }
         with atomic_path(path) as tmp:
             torch.save(state, tmp)
@@ -258,7 +266,9 @@ class Trainer:
         self.model = TriangleModel.from_state(ckpt["model"], self.config.device, path)
         if self.config.background != "none" and self.model.background is None:
             self.log("the checkpoint predates trained backgrounds: the run continues without one")
-        self.optimizer = make_optimizer(self.model, _learning_rates(self.config))
+        if self.config.exposure:
+            self.exposures = _exposures_from_checkpoint(ckpt, len(self.train_views), self.config.device, path)
+        self.optimizer = make_optimizer(self.model, _learning_rates(self.config), self._exposure_offsets())
         self.optimizer.load_state_dict(ckpt["optimizer"])
         self.strategy.load_state_dict(ckpt["strategy"])
         self.state = _State(**ckpt["state"])
@@ -274,12 +284,12 @@ class Trainer:
         densification. Returns the loss terms, or None for a rejected step."""
         self.strategy.before_step(self.model, self.optimizer, it)
         _apply_schedule(self.model, self.optimizer, self.config, it)
-        view, camera = self._training_view(it)
-        out = self.model.render(camera, view.T_cam_world, background_mask=view.background_mask)
+        index, view, camera = self._training_view(it)
+        out, exposure_prior = self._render_training_view(index, view, camera)
         opacity = self.model.triangle_opacity()
         terms = training_loss(
             out, view.image, view.depth, view.normal, opacity, self.config,
-            moving_mask=view.moving_mask, target_moments=view.image_moments,
+            moving_mask=view.moving_mask, target_moments=view.image_moments, exposure_prior=exposure_prior,
         )  # fmt: skip
         terms.total.backward()
         accepted = self._optimizer_step(terms.total, it)
@@ -287,10 +297,10 @@ class Trainer:
         self._record(report)
         return terms.as_floats() if accepted else None
 
-    def _training_view(self, it: int) -> tuple[View, CameraModel]:
-        """Iteration ``it``'s training view and the camera to render it with: at half resolution in
-        the coarse start (:func:`splat.coarse_views.coarse_iterations`; made on first use, dropped
-        after)."""
+    def _training_view(self, it: int) -> tuple[int, View, CameraModel]:
+        """Iteration ``it``'s training view (its index in the training views, the view) and the
+        camera to render it with: at half resolution in the coarse start
+        (:func:`splat.coarse_views.coarse_iterations`; made on first use, dropped after)."""
         n = len(self.train_views)
         index = int(_view_order(self.config.seed, it // n, n)[it % n])
         if it >= self._coarse_iterations:
@@ -302,12 +312,26 @@ class Trainer:
             view, camera = self._half_views[index], self._half_camera
         if view.image_moments is None and index < self._views_with_moments and self.config.lambda_dssim > 0:
             view.image_moments = image_moments(view.image)
-        return view, camera
+        return index, view, camera
+
+    def _render_training_view(
+        self, index: int, view: View, camera: CameraModel
+    ) -> tuple[RenderOutput, torch.Tensor | None]:
+        """The render of training view ``index`` (its colours mapped by the view's exposure, when
+        the run learns them) and that map's prior term (None without)."""
+        out = self.model.render(camera, view.T_cam_world, background_mask=view.background_mask)
+        if self.exposures is None:
+            return out, None
+        return replace(out, rgb=self.exposures.apply(out.rgb, index)), self.exposures.prior(index)
+
+    def _exposure_offsets(self) -> torch.Tensor | None:
+        return None if self.exposures is None else self.exposures.offsets
 
     def _optimizer_step(self, loss: torch.Tensor, it: int) -> bool:
         """Step the optimiser if ``loss`` and every gradient are finite, else count a rejected step
         (too many in a row: :class:`TrainingDivergedError`); the gradients are cleared either way."""
-        finite = _finite_step(loss, self.model)
+        params = self.model.trainable() + ([] if self.exposures is None else [self.exposures.offsets])
+        finite = _finite_step(loss, params)
         if finite:
             self.optimizer.step()
         self.optimizer.zero_grad(set_to_none=True)
@@ -326,7 +350,33 @@ class Trainer:
             if note := report.note():
                 self.state.skips.append(note)
 
+    def _set_held_out_maps(self) -> str | None:
+        """Give the test views their colour maps from the training views' (:func:`held_out_maps`);
+        returns how they were chosen (None without maps or test views)."""
+        if self.exposures is None or not self.test_views:
+            return None
+        maps, rule = held_out_maps(
+            self.exposures, _seconds(self.train_keyframes), _seconds(self.test_keyframes)
+        )
+        for view, matrix in zip(self.test_views, maps, strict=True):
+            view.color_map = matrix.to(self.config.device)
+        return rule
+
+    def _write_color_maps(self) -> dict:
+        """``RUN_DIR/exposure.json``: every keyframe's colour map and how the test views' were chosen;
+        returns the maps' summary for ``summary.json`` (empty without maps)."""
+        if self.exposures is None:
+            return {}
+        rule = self._set_held_out_maps()
+        train = torch.eye(3) + self.exposures.offsets.detach().cpu()
+        maps = {k.name: m.tolist() for k, m in zip(self.train_keyframes, train, strict=True)}
+        maps |= {v.name: v.color_map.cpu().tolist() for v in self.test_views}
+        record = {"test_views": rule, "maps": maps}
+        layout.exposure_path(self.run_dir).write_text(json.dumps(record, indent=1))
+        return {**self.exposures.summary(), "test_views": rule}
+
     def _evaluate(self, it: int, losses: dict[str, float]) -> None:
+        self._set_held_out_maps()
         test = evaluate_views(self.model, self.test_views, self.scene.camera) if self.test_views else {}
         line = {
             "iteration": it,
@@ -399,15 +449,37 @@ class Trainer:
         save_model(self.model, layout.model_path(self.run_dir))
         # The loop evaluates its last iteration (the end, or where it stopped early).
         test = self.state.last_test
+        exposure = self._write_color_maps()
         write_renders(self.model, self.test_views, self.scene.camera, layout.renders_dir(self.run_dir))
         export = _export(self.model, self.scene, self.train_keyframes, self.train_views, self.run_dir)
         c, s = self.config, self.state
         result = TrainResult(
             str(self.run_dir), c.method, c.preset, c.device, s.iteration, round(s.elapsed_s, 3),
             self.model.n_triangles, s.stopped_early, s.rejected_total, test, s.skips, s.densification, export,
+            exposure,
         )  # fmt: skip
         layout.summary_path(self.run_dir).write_text(json.dumps(asdict(result), indent=1))
         return result
+
+
+def _seconds(keyframes: list[Keyframe]) -> np.ndarray:
+    """``(K,)`` the keyframes' stamps in seconds."""
+    return np.array([k.t_ns * 1e-9 for k in keyframes])
+
+
+def _exposures_from_checkpoint(ckpt: dict, n_views: int, device: str, path: Path) -> ViewExposures:
+    """The checkpoint's colour maps of ``n_views`` training views; an error naming the file when it
+    has none (a run without them) or maps of another number of views."""
+    offsets = ckpt.get("exposure")
+    if not isinstance(offsets, torch.Tensor) or offsets.shape != (n_views, 3, 3):
+        got = "none" if offsets is None else tuple(getattr(offsets, "shape", ()))
+        raise InputError(
+            f"expected the colour maps of {n_views} training views (3x3 each), got {got}; the run was "
+            "started without --exposure or on other keyframes: train into a new --out",
+            path=path,
+            field="exposure",
+        )
+    return ViewExposures(offsets.to(device))
 
 
 def _progress_text(losses: dict[str, float], n_triangles: int, rate: float) -> str:

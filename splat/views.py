@@ -28,6 +28,8 @@ class View:
             or None when the keyframe saw none (:meth:`~slam_bridge.scene.Scene.moving_mask`).
         image_moments: the image's :func:`~splat.losses.image_moments` ``(1, 6, H, W)``, once the
             trainer has kept them (None: D-SSIM computes them each time).
+        color_map: ``(3, 3)`` colour matrix a held-out view's render is scored through (its
+            exposure, :func:`splat.exposure.held_out_maps`), or None (the render as it is).
     """
 
     name: str
@@ -38,6 +40,12 @@ class View:
     background_mask: Tensor | None = None
     moving_mask: Tensor | None = None
     image_moments: Tensor | None = None
+    color_map: Tensor | None = None
+
+    def scored_rgb(self, rgb: Tensor) -> Tensor:
+        """A render ``(H, W, 3)`` of this view as it is scored: through :attr:`color_map`, clipped to
+        [0, 1]."""
+        return (rgb if self.color_map is None else rgb @ self.color_map.to(rgb).T).clamp(0, 1)
 
 
 def load_views(

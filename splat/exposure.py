@@ -1,0 +1,111 @@
+"""Exposure and white balance: an affine colour map learned for each training view.
+
+A real camera changes its gain and white balance from frame to frame (auto-exposure): the same
+wall is brighter in one image than in the next. Fitting one colour per triangle to all of them
+averages the differences into the triangles and the loss keeps pulling them back and forth. As
+splatting trainers do for real captures, each training view's render is mapped by its own colour
+transform ``rgb' = A rgb`` (``A`` ``(3, 3)``: a gain per channel and their mixing, which is white
+balance) before the photometric loss, and a prior pulls every map towards the identity, so the
+triangles keep the images' common appearance and the maps take up only what differs per image.
+
+A gain in linear light is the same gain after the camera's gamma curve, so no offset is needed,
+and none is learnt: a render is black where no triangle covers a pixel, and an offset per view
+learnt to lift those holes to the images' mean colour (on the virtual street +0.24 in every
+view), which darkened every triangle by as much.
+
+A held-out image's own map is not known to training, but a camera's exposure drifts smoothly
+in time, and so do the maps (on the virtual street without exposure changes they took up a
+smooth drift of up to 9 % over the drive): a test view gets the map interpolated in time between
+the training views before and after it, when that predicts the training views' own maps better
+than the identity does (each left out in turn; :func:`held_out_maps`), else the identity.
+Exported meshes keep the triangles' own colours. ``lts eval`` applies the test views' maps
+(``RUN_DIR/exposure.json``) and reports, beside that PSNR, one after fitting each test view's
+colour matrix to its image (:func:`eval.photometric.color_aligned`), the same for every method.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import Tensor
+
+#: How the test views' maps were chosen (``exposure.json``'s ``test_views``).
+INTERPOLATED = "interpolated in time between the training views before and after"
+IDENTITY = "the identity (interpolation did not predict the training views' maps)"
+
+
+class ViewExposures:
+    """The colour maps of ``n_views`` training views, stored as their offsets from the identity
+    ``(V, 3, 3)`` (``A - I``; zeros: every map the identity), a leaf that requires grad."""
+
+    def __init__(self, offsets: Tensor):
+        if offsets.dim() != 3 or offsets.shape[1:] != (3, 3):
+            raise ValueError(f"expected colour-map offsets of shape (V, 3, 3), got {tuple(offsets.shape)}")
+        self.offsets = offsets.detach().clone().requires_grad_(True)
+
+    @classmethod
+    def identity(cls, n_views: int, dtype: torch.dtype = torch.float32, device: str = "cpu") -> ViewExposures:
+        return cls(torch.zeros(n_views, 3, 3, dtype=dtype, device=device))
+
+    def apply(self, rgb: Tensor, view: int) -> Tensor:
+        """``(H, W, 3)`` render ``rgb`` mapped by view ``view``'s colour transform."""
+        return rgb + rgb @ self.offsets[view].T
+
+    def prior(self, view: int) -> Tensor:
+        """Squared distance of view ``view``'s map from the identity (sum over its 9 numbers)."""
+        return self.offsets[view].square().sum()
+
+    def gains(self) -> Tensor:
+        """``(V,)`` each map's mean gain (the mean of ``A``'s diagonal)."""
+        return 1.0 + self.offsets.detach().diagonal(dim1=1, dim2=2).mean(dim=1)
+
+    def summary(self) -> dict[str, float]:
+        """The spread of the learnt maps: the smallest and largest mean gain and the largest
+        mixing between channels (off-diagonal entry of ``A``) over the views."""
+        offsets = self.offsets.detach()
+        if len(offsets) == 0:
+            return {"gain_min": 1.0, "gain_max": 1.0, "mixing_max": 0.0}
+        mixing = (offsets - torch.diag_embed(offsets.diagonal(dim1=1, dim2=2))).abs().amax()
+        gains = self.gains()
+        return {
+            "gain_min": round(float(gains.min()), 4),
+            "gain_max": round(float(gains.max()), 4),
+            "mixing_max": round(float(mixing), 4),
+        }
+
+
+def interpolated(offsets: Tensor, times: np.ndarray, at: np.ndarray) -> Tensor:
+    """Map offsets ``(Q, 3, 3)`` at times ``at`` ``(Q,)``, linear in time between the offsets
+    ``(V, 3, 3)`` of the views at ``times`` ``(V,)`` before and after (the nearest beyond the ends)."""
+    order = np.argsort(times)
+    flat = offsets.detach().cpu().double().numpy()[order].reshape(len(order), 9)
+    values = np.stack([np.interp(at, times[order], flat[:, k]) for k in range(9)], axis=1)
+    return torch.as_tensor(values.reshape(-1, 3, 3), dtype=offsets.dtype)
+
+
+def interpolation_predicts(offsets: Tensor, times: np.ndarray) -> bool:
+    """Whether the training views' maps ``(V, 3, 3)`` (at ``times`` ``(V,)``) are, summed over the
+    views between the first and the last, closer to the map interpolated from the others (each left
+    out in turn) than to the identity."""
+    if len(times) < 3:
+        return False
+    order = np.argsort(times)
+    interpolation_error, identity_error = 0.0, 0.0
+    for i in order[1:-1]:
+        others = np.flatnonzero(np.arange(len(times)) != i)
+        predicted = interpolated(offsets[others], times[others], times[i : i + 1])[0]
+        interpolation_error += float((offsets[i].detach().cpu() - predicted).square().sum())
+        identity_error += float(offsets[i].detach().square().sum())
+    return interpolation_error < identity_error
+
+
+def held_out_maps(
+    exposures: ViewExposures, train_times: np.ndarray, test_times: np.ndarray
+) -> tuple[Tensor, str]:
+    """The colour matrices ``(Q, 3, 3)`` (``A``, not offsets) of held-out views at ``test_times``
+    ``(Q,)`` from the training views' maps (at ``train_times`` ``(V,)``), and how they were chosen
+    (:data:`INTERPOLATED` or :data:`IDENTITY`)."""
+    eye = torch.eye(3, dtype=exposures.offsets.dtype)
+    if not interpolation_predicts(exposures.offsets, train_times):
+        return eye.expand(len(test_times), 3, 3).clone(), IDENTITY
+    return eye + interpolated(exposures.offsets, train_times, test_times), INTERPOLATED
