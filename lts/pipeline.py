@@ -230,7 +230,9 @@ def prepare_config(o: ReconstructOptions) -> PrepareConfig:
 def prepare_key(config: PrepareConfig) -> list[str]:
     """The options of ``config`` that the app layer sets, as ``lts prepare`` takes them, and the
     scene folder's format (a folder of an older format is made again)."""
-    key = [f"scene format {FORMAT_VERSION}", "--keyframe-interval", str(config.keyframe_interval_s)]
+    interval = config.keyframe_interval_s
+    key = [f"scene format {FORMAT_VERSION}"]
+    key += [] if interval is None else ["--keyframe-interval", str(interval)]
     key += ["--max-size", str(config.max_size), "--downscale", str(config.downscale)]
     return key + (["--sparse-points"] if config.sparse_points else [])
 
@@ -244,7 +246,7 @@ def build_scene(
 
     shutil.rmtree(out, ignore_errors=True)
     built = build(session, load_calibration(calib), slam, out, config)
-    log(f"  {len(built.keyframes)} keyframes")
+    log(f"  {len(built.keyframes)} keyframes, one per {built.interval_s:.3g} s")
     if built.matching_summary() is not None:
         log(f"  {built.matching_summary()}")
 

@@ -107,7 +107,10 @@ def reconstruct_command(
         True, "--exposure/--no-exposure", help="Learn a colour map per training image (see lts train --help)."
     ),
     keyframe_interval: float | None = typer.Option(
-        None, "--keyframe-interval", help="Seconds between keyframes (lts prepare's default: 0.5)."
+        None,
+        "--keyframe-interval",
+        help="Seconds between keyframes (lts prepare's default: 0.5, or down to 0.2 so that a short "
+        "recording gives 40).",
     ),
     max_size: int = MAX_SIZE_OPTION,
     downscale: int = DOWNSCALE_OPTION,

@@ -25,6 +25,36 @@ def frame_stamps(reader: Recording, topic: str) -> np.ndarray:
     return stamps
 
 
+#: The keyframe spacing when none is given: one per this many seconds (the paper's ~0.5 s) ...
+DEFAULT_INTERVAL_S = 0.5
+#: ... or closer, so that a short recording still gives this many keyframes (a 7.8 s drive 39
+#: instead of 16, every eighth of them a test view) ...
+MIN_KEYFRAMES = 40
+#: ... but never closer than this (a 3 s recording gives 15, not one per frame).
+MIN_INTERVAL_S = 0.2
+
+
+def covered_frames(frame_t_ns: np.ndarray, trajectory: Trajectory, calibration: Calibration) -> np.ndarray:
+    """Indices ``(M,)`` of the camera frames (stamps ``(N,)``) the trajectory covers; an error when
+    it covers none."""
+    covered = np.flatnonzero(trajectory.covers(lidar_clock(frame_t_ns, calibration)))
+    if covered.size == 0:
+        raise InputError(
+            "the trajectory covers none of the camera frames (check time_offset_s and the SLAM folder)",
+            field="trajectory",
+        )
+    return covered
+
+
+def default_interval(frame_t_ns: np.ndarray, trajectory: Trajectory, calibration: Calibration) -> float:
+    """Seconds between keyframes when none is given: :data:`DEFAULT_INTERVAL_S`, or the span of the
+    covered frames (stamps ``(N,)``) over :data:`MIN_KEYFRAMES` when that is shorter, down to
+    :data:`MIN_INTERVAL_S`."""
+    covered = frame_t_ns[covered_frames(frame_t_ns, trajectory, calibration)]
+    span_s = float(covered[-1] - covered[0]) * 1e-9
+    return float(np.clip(span_s / MIN_KEYFRAMES, MIN_INTERVAL_S, DEFAULT_INTERVAL_S))
+
+
 def camera_poses(trajectory: Trajectory, calibration: Calibration, t_cam_ns: np.ndarray) -> np.ndarray:
     """``T_world_cam`` ``(N, 4, 4)`` at camera stamps ``(N,)``: the LiDAR trajectory at the LiDAR
     time of each frame composed with ``T_lidar_cam``."""
@@ -41,12 +71,7 @@ def select_keyframes(
     """Indices of camera frames to keep, only where the trajectory covers them: one per
     ``interval_s``, or — with ``min_motion = (metres, degrees)`` — the next frame whose camera has
     moved or turned at least that much since the last keyframe."""
-    covered = np.flatnonzero(trajectory.covers(lidar_clock(frame_t_ns, calibration)))
-    if covered.size == 0:
-        raise InputError(
-            "the trajectory covers none of the camera frames (check time_offset_s and the SLAM folder)",
-            field="trajectory",
-        )
+    covered = covered_frames(frame_t_ns, trajectory, calibration)
     poses = camera_poses(trajectory, calibration, frame_t_ns[covered]) if min_motion else None
     chosen = [0]
     for j in range(1, len(covered)):

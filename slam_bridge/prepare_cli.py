@@ -59,7 +59,13 @@ def prepare_command(
     ),
     slam: Path = typer.Option(..., "--slam", help="SLAM folder (mesh.ply + trajectory.tum), from lts slam."),
     out: Path = typer.Option(..., "--out", help="Scene folder to write."),
-    interval: float = typer.Option(0.5, "--keyframe-interval", help="Seconds between keyframes."),
+    interval: float | None = typer.Option(
+        None,
+        "--keyframe-interval",
+        min=0.0,
+        help="Seconds between keyframes; by default 0.5, or down to 0.2 so that a recording shorter than "
+        "20 s still gives 40 keyframes.",
+    ),
     keyframe_motion: tuple[float, float] | None = typer.Option(
         None,
         "--keyframe-motion",
@@ -134,6 +140,7 @@ def prepare_command(
     summary = {
         "out": str(out),
         "keyframes": len(keyframes),
+        "keyframe_interval_s": round(built.interval_s, 4),
         "train": sum(k.split == "train" for k in keyframes),
         "test": sum(k.split == "test" for k in keyframes),
         "pose_refinement": None if refinement is None else asdict(refinement),
@@ -148,7 +155,8 @@ def prepare_command(
         emit_json(summary)
         return
     console.print(
-        f"wrote {out}: {summary['keyframes']} keyframes ({summary['train']} train, {summary['test']} test)"
+        f"wrote {out}: {summary['keyframes']} keyframes ({summary['train']} train, {summary['test']} test), "
+        f"one per {built.interval_s:.3g} s"
     )
 
 

@@ -21,7 +21,10 @@ class PrepareConfig:
     """Settings of the scene builder.
 
     Attributes:
-        keyframe_interval_s: one keyframe per this many seconds of camera frames (paper: ~0.5 s).
+        keyframe_interval_s: one keyframe per this many seconds of camera frames; None: 0.5 s (the
+            paper's), or down to 0.2 s so that a recording shorter than 20 s still gives 40
+            (:func:`~slam_bridge.keyframe_selection.default_interval`). A scene records the interval
+            it was made with.
         keyframe_min_motion: ``(metres, degrees)``: choose keyframes by motion instead of time.
         test_every: every n-th keyframe is held out for testing.
         occlusion_window_px: window of the see-through test on LiDAR depth (0 disables it).
@@ -38,7 +41,7 @@ class PrepareConfig:
         downscale: divide the recording's image size by this whole number (1: keep it).
     """
 
-    keyframe_interval_s: float = 0.5
+    keyframe_interval_s: float | None = None
     keyframe_min_motion: tuple[float, float] | None = None
     test_every: int = 8
     occlusion_window_px: int = 7

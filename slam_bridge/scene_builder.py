@@ -38,6 +38,7 @@ from slam_bridge.keyframe_lidar import keyframe_lidar, write_keyframe_lidar
 from slam_bridge.keyframe_normals import write_keyframe_normals
 from slam_bridge.keyframe_selection import (
     camera_poses,
+    default_interval,
     frame_stamps,
     make_keyframes,
     select_keyframes,
@@ -57,12 +58,13 @@ class SceneBuild:
     """What :func:`build_scene` wrote: the keyframes and, with ``refine_poses``, the refinement's
     report; with ``sparse_points`` or ``refine_poses``, matching's (with both, that of the matching
     at the final poses the sparse points come from); with ``sparse_points``, the seconds
-    triangulation took."""
+    triangulation took; the seconds between keyframes (as given, or the default's)."""
 
     keyframes: list[Keyframe]
     refinement: RefinementReport | None
     matching: MatchingReport | None
     triangulation_s: float | None
+    interval_s: float
 
     def matching_summary(self) -> str | None:
         """One line on matching and triangulation (None when neither ran)."""
@@ -94,6 +96,8 @@ def build_scene(
     mesh, trajectory = load_slam_dir(slam_dir)
     out, target = Path(out_dir), config.scene_camera(calibration.camera)
     frame_t = frame_stamps(reader, topics.image)
+    if config.keyframe_interval_s is None:
+        config = replace(config, keyframe_interval_s=default_interval(frame_t, trajectory, calibration))
     chosen = select_keyframes(
         frame_t, trajectory, calibration, config.keyframe_interval_s, config.keyframe_min_motion
     )
@@ -141,7 +145,7 @@ def build_scene(
         "triangulation_s": triangulation_s,
     }
     write_scene_index(out, target, keyframes, config, source, sparse_points=sparse_file)
-    return SceneBuild(keyframes, refinement, matching, triangulation_s)
+    return SceneBuild(keyframes, refinement, matching, triangulation_s, config.keyframe_interval_s)
 
 
 def _counter(progress: Progress | None, total: int) -> Callable[[], None]:

@@ -45,8 +45,10 @@ def gt_scene(quick_room: Path, gt_slam_dir: Path, tmp_path_factory: pytest.TempP
 def test_keyframe_poses_follow_the_true_camera_trajectory(gt_scene: Path, quick_room: Path) -> None:
     scene = load_scene(gt_scene)
     truth = read_tum(quick_room / "ground_truth" / "trajectory.tum")
-    assert len(scene.keyframes) == 7  # frames over 0..3 s, one keyframe per 0.5 s
-    assert [k.split for k in scene.keyframes].count("test") == 0  # fewer than 8 keyframes
+    # Frames over 0..3 s: 0.5 s would give 7 keyframes; a recording this short gets one per 0.2 s.
+    assert scene.options.keyframe_interval_s == pytest.approx(0.2)
+    assert len(scene.keyframes) == 16  # at 0.0, 0.2, ..., 3.0 s
+    assert [k.split for k in scene.keyframes].count("test") == 2  # every eighth
     for keyframe in scene.keyframes:
         np.testing.assert_allclose(keyframe.T_world_cam, truth.interpolate(keyframe.t_ns), atol=1e-6)
 
@@ -61,7 +63,7 @@ def test_lidar_depth_agrees_with_ground_truth_depth(gt_scene: Path, quick_room: 
             quick_room / "ground_truth" / "mesh.ply", scene.camera, keyframe.T_world_cam
         )
         valid = depth > 0
-        assert valid.mean() > 0.1
+        assert valid.mean() > 0.05  # the sweeps between its neighbours 0.2 s away: ~8 % of the pixels
         errors.append(np.abs(depth[valid] - truth[valid]))
     errors = np.concatenate(errors)
     assert np.median(errors) < 1.5 * sigma
@@ -123,7 +125,7 @@ def test_scene_records_its_format_and_options(gt_scene: Path) -> None:
 
     data = json.loads((gt_scene / "scene.json").read_text())
     assert data["format_version"] == 2
-    assert load_scene(gt_scene).options == PrepareConfig()
+    assert load_scene(gt_scene).options == PrepareConfig(keyframe_interval_s=0.2)  # the one it used
     assert not (gt_scene / "depth").exists()
 
 
