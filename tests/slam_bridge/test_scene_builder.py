@@ -125,7 +125,9 @@ def test_scene_records_its_format_and_options(gt_scene: Path) -> None:
 
     data = json.loads((gt_scene / "scene.json").read_text())
     assert data["format_version"] == 2
-    assert load_scene(gt_scene).options == PrepareConfig(keyframe_interval_s=0.2)  # the one it used
+    options = load_scene(gt_scene).options
+    assert options == PrepareConfig(keyframe_interval_s=options.keyframe_interval_s)  # the one it used
+    assert options.keyframe_interval_s == pytest.approx(0.2)  # six frame periods of 30 Hz
     assert not (gt_scene / "depth").exists()
 
 
@@ -324,3 +326,25 @@ def test_keyframe_lidar_keeps_the_scans_in_each_window_and_the_points_in_view() 
     assert points[0].dtype == np.float32
     np.testing.assert_array_equal(points[0], [[0, 0, 2]])
     np.testing.assert_array_equal(points[1], [[0, 0, 2], [0, 0, 3]])
+
+
+@pytest.mark.parametrize(
+    ("span_s", "fps", "interval_s", "count"),
+    [
+        (19.97, 30, 0.5, 40),
+        (7.7, 10, 0.2, 39),
+        (12.0, 30, 0.3, 41),
+        (2.97, 30, 0.2, 15),
+        (60.0, 30, 0.5, 121),
+    ],
+)
+def test_default_keyframe_interval_gives_short_recordings_40_keyframes(span_s, fps, interval_s, count):
+    from types import SimpleNamespace
+
+    from slam_bridge.keyframe_selection import default_interval
+
+    t = (np.arange(0, span_s + 1e-9, 1 / fps) * 1e9).astype(np.int64)
+    everywhere = SimpleNamespace(covers=lambda stamps: np.ones(len(stamps), dtype=bool))
+    interval = default_interval(t, everywhere, SimpleNamespace(time_offset_s=0.0))
+    assert interval == pytest.approx(interval_s, abs=1e-6)
+    assert len(t[:: round(interval * fps)]) == count
