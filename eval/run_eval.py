@@ -434,7 +434,7 @@ def evaluate_run(
     log(f"rendering {len(tests)} test views")
     color_maps, metrics["test_color_maps"] = layout.read_color_maps(run_dir)
     if not color_maps:
-        reasons["test_color_maps"] = "the run learnt no colour maps (lts train --no-exposure, or older)"
+        reasons["test_color_maps"] = "the run learnt no colour maps (lts train --exposure)"
     views = _photometric(model, scene, tests, lpips_network, metrics, reasons, moving, color_maps)
 
     metrics.update(dict.fromkeys(GT_FIELDS))

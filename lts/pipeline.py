@@ -69,7 +69,7 @@ class ReconstructOptions:
     topics: str = "auto"
     span: TimeSpan | None = None
     camera: int | None = None
-    exposure: bool = True
+    exposure: str = "auto"
 
     @property
     def paths(self) -> list[Path]:
@@ -254,7 +254,7 @@ def build_scene(
 def train_key(o: ReconstructOptions) -> list[str]:
     """The training options as ``lts train`` takes them."""
     key = ["--method", o.method, "--preset", o.preset, "--seed", str(o.seed), "--device", o.device]
-    key += [] if o.exposure else ["--no-exposure"]
+    key += [] if o.exposure == "auto" else ["--exposure", o.exposure]
     return key + (["--iterations", str(o.iterations)] if o.iterations is not None else [])
 
 

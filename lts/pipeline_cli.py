@@ -103,8 +103,10 @@ def reconstruct_command(
     iterations: int | None = typer.Option(None, min=1, help="Override the preset's iteration count."),
     device: str = typer.Option("cpu", help="cpu or cuda for training."),
     seed: int = typer.Option(0, help="Training seed."),
-    exposure: bool = typer.Option(
-        True, "--exposure/--no-exposure", help="Learn a colour map per training image (see lts train --help)."
+    exposure: str = typer.Option(
+        "auto",
+        "--exposure",
+        help="auto, on or off: a colour matrix per training image (see lts train --help).",
     ),
     keyframe_interval: float | None = typer.Option(
         None,

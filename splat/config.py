@@ -61,10 +61,11 @@ class TrainConfig(BaseModel):
         8.0, gt=0, description="LiDAR returns beyond this count their depth error relative to their range"
     )
     w_distortion: float = Field(0.01, ge=0)
-    exposure: bool = Field(
-        True,
-        description="learn an affine colour map per training view (auto-exposure, white balance; "
-        "splat.exposure), pulled towards the identity by w_exposure",
+    exposure: Literal["auto", "on", "off"] = Field(
+        "auto",
+        description="learn a colour matrix per training view (auto-exposure, white balance; splat.exposure), "
+        "pulled towards the identity by w_exposure; auto: when the images' gains, measured on the LiDAR "
+        "points neighbouring images share, spread by more than 5 %",
     )
     w_exposure: float = Field(0.01, ge=0, description="weight of the colour maps' prior towards the identity")
 
@@ -205,7 +206,7 @@ def config_from_options(
     iterations: int | None = None,
     max_triangles: int | None = None,
     coarse_until: float | None = None,
-    exposure: bool = True,
+    exposure: str = "auto",
 ) -> TrainConfig:
     """The config ``lts train`` builds from its options (None: the preset's value), so that
     ``lts reconstruct`` can tell whether an existing run was made with the same ones."""

@@ -1,4 +1,4 @@
-"""Exposure and white balance: an affine colour map learned for each training view.
+"""Exposure and white balance: a colour matrix learned for each training view.
 
 A real camera changes its gain and white balance from frame to frame (auto-exposure): the same
 wall is brighter in one image than in the next. Fitting one colour per triangle to all of them
@@ -24,6 +24,8 @@ colour matrix to its image (:func:`eval.photometric.color_aligned`), the same fo
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import torch
@@ -109,3 +111,52 @@ def held_out_maps(
     if not interpolation_predicts(exposures.offsets, train_times):
         return eye.expand(len(test_times), 3, 3).clone(), IDENTITY
     return eye + interpolated(exposures.offsets, train_times, test_times), INTERPOLATED
+
+
+def neighbour_gains(
+    images: list[np.ndarray], lidar_points: list[np.ndarray], poses_world_cam: np.ndarray, camera
+) -> np.ndarray:
+    """``(K - 1,)`` log brightness ratio of each image to the one before, from the LiDAR points of
+    the one before that both see (``images``: ``(H, W, 3)`` RGB in [0, 1] in time order;
+    ``lidar_points``: each image's camera-frame returns ``(M, 3)``; ``poses_world_cam`` ``(K, 4, 4)``):
+    the median over those points of ``log(grey_after / grey_before)``, 0 where fewer than
+    :data:`MIN_SHARED_POINTS` are shared. A surface keeps its colour from one image to the next, so
+    what differs is the camera's gain."""
+    grey = [image.mean(axis=2) for image in images]
+    ratios = np.zeros(max(len(images) - 1, 0))
+    for i in range(len(ratios)):
+        before = _sampled(grey[i], lidar_points[i], camera)
+        world = lidar_points[i] @ poses_world_cam[i][:3, :3].T + poses_world_cam[i][:3, 3]
+        T_cam_world = np.linalg.inv(poses_world_cam[i + 1])
+        after = _sampled(grey[i + 1], world @ T_cam_world[:3, :3].T + T_cam_world[:3, 3], camera)
+        usable = np.isfinite(before) & np.isfinite(after) & (before > 0.04) & (after > 0.04)
+        usable &= (before < 0.96) & (after < 0.96)
+        if usable.sum() >= MIN_SHARED_POINTS:
+            ratios[i] = float(np.median(np.log(after[usable] / before[usable])))
+    return ratios
+
+
+#: Fewer shared LiDAR points than this say nothing about two images' gains.
+MIN_SHARED_POINTS = 50
+#: With ``exposure: auto``, the maps are learnt when the images' gains, chained from one image to
+#: the next, span more than this (log ratio: 5 %).
+GAIN_SPREAD_LIMIT = math.log(1.05)
+
+
+def gain_spread(log_ratios: np.ndarray) -> float:
+    """How far the gains chained from the neighbouring images' log ratios ``(K - 1,)`` spread (the
+    range of their running sum, the first image at 0)."""
+    return float(np.ptp(np.concatenate([[0.0], np.cumsum(log_ratios)])))
+
+
+def _sampled(grey: np.ndarray, points_cam: np.ndarray, camera) -> np.ndarray:
+    """``(M,)`` grey level at the pixels of camera-frame points ``(M, 3)`` (NaN outside the image
+    or behind the camera)."""
+    values = np.full(len(points_cam), np.nan)
+    front = points_cam[:, 2] > 0.1
+    pixels = camera.project(points_cam[front])
+    inside = camera.in_image(pixels)
+    cols, rows = np.round(pixels[inside]).astype(np.int64).T
+    index = np.flatnonzero(front)[inside]
+    values[index] = grey[rows.clip(0, grey.shape[0] - 1), cols.clip(0, grey.shape[1] - 1)]
+    return values

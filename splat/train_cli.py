@@ -37,11 +37,12 @@ def train_command(
         "start; 0: full resolution throughout); "
         f"by default {TrainConfig.model_fields['coarse_until'].default}.",
     ),
-    exposure: bool = typer.Option(
-        True,
-        "--exposure/--no-exposure",
-        help="Learn a colour map per training image (auto-exposure, white balance); --no-exposure for a "
-        "camera with fixed exposure and white balance.",
+    exposure: str = typer.Option(
+        "auto",
+        "--exposure",
+        help="auto, on or off: learn a colour matrix per training image (auto-exposure, white balance); "
+        "auto learns them when the images' gains, measured on the LiDAR points neighbouring images "
+        "share, spread by more than 5 %.",
     ),
     seed: int = typer.Option(0, help="Seed of view order, sampling and noise."),
     device: str = typer.Option("cpu", help="cpu or cuda (the matching rasteriser kernel is used)."),

@@ -26,7 +26,7 @@ from splat import run_dir as layout
 from splat.background_mask import scored_background_mask
 from splat.coarse_views import coarse_iterations, half_camera, half_view
 from splat.config import TrainConfig, load_config
-from splat.exposure import ViewExposures, held_out_maps
+from splat.exposure import GAIN_SPREAD_LIMIT, ViewExposures, gain_spread, held_out_maps, neighbour_gains
 from splat.finite import all_finite
 from splat.held_out_views import evaluate_views, write_renders
 from splat.initialise import build_model, initial_triangles
@@ -196,7 +196,7 @@ class Trainer:
         self.model = build_model(
             init, self.config, self.train_views, self.scene.camera, lambda m: self.log(f"init: {m}")
         )
-        if self.config.exposure:
+        if self._learns_exposure():
             self.exposures = ViewExposures.identity(len(self.train_views), device=self.config.device)
         self.optimizer = make_optimizer(self.model, _learning_rates(self.config), self._exposure_offsets())
         self.strategy.initialize(self.model)
@@ -207,6 +207,28 @@ class Trainer:
                 f"the first {self._coarse_iterations} of {self.config.iterations} iterations rendered at "
                 f"half resolution ({half.width}x{half.height}: a quarter of the pixels)"
             )
+
+    def _learns_exposure(self) -> bool:
+        """Whether the run learns colour maps: ``exposure: on``, or ``auto`` and the training images'
+        gains spread by more than :data:`GAIN_SPREAD_LIMIT` (:func:`neighbour_gains`); logged."""
+        if self.config.exposure != "auto":
+            return self.config.exposure == "on"
+        ordered = sorted(range(len(self.train_keyframes)), key=lambda i: self.train_keyframes[i].t_ns)
+        ratios = neighbour_gains(
+            [self.train_views[i].image.cpu().numpy() for i in ordered],
+            [self.scene.lidar(self.train_keyframes[i]).points.astype(np.float64) for i in ordered],
+            np.stack([self.train_keyframes[i].T_world_cam for i in ordered]),
+            self.scene.camera,
+        )
+        spread = gain_spread(ratios)
+        learns = spread > GAIN_SPREAD_LIMIT
+        self.state.skips.append(
+            f"the training images' gains spread by {math.expm1(spread):.1%} (the LiDAR points neighbouring "
+            f"images share): {'a colour map per image is learnt' if learns else 'no colour maps learnt'} "
+            f"(exposure: auto, limit {math.expm1(GAIN_SPREAD_LIMIT):.0%})"
+        )
+        self.log(self.state.skips[-1])
+        return learns
 
     def prepare(self, resume: bool) -> None:
         """Select keyframes, load views, then initialise or restore from the last checkpoint."""
@@ -266,7 +288,7 @@ class Trainer:
         self.model = TriangleModel.from_state(ckpt["model"], self.config.device, path)
         if self.config.background != "none" and self.model.background is None:
             self.log("the checkpoint predates trained backgrounds: the run continues without one")
-        if self.config.exposure:
+        if self.config.exposure == "on" or ckpt.get("exposure") is not None:
             self.exposures = _exposures_from_checkpoint(ckpt, len(self.train_views), self.config.device, path)
         self.optimizer = make_optimizer(self.model, _learning_rates(self.config), self._exposure_offsets())
         self.optimizer.load_state_dict(ckpt["optimizer"])
@@ -475,7 +497,7 @@ def _exposures_from_checkpoint(ckpt: dict, n_views: int, device: str, path: Path
         got = "none" if offsets is None else tuple(getattr(offsets, "shape", ()))
         raise InputError(
             f"expected the colour maps of {n_views} training views (3x3 each), got {got}; the run was "
-            "started without --exposure or on other keyframes: train into a new --out",
+            "started without colour maps or on other keyframes: train into a new --out",
             path=path,
             field="exposure",
         )

@@ -61,10 +61,10 @@ def test_the_identity_map_changes_nothing_and_an_offset_is_an_affine_map():
 
 def test_training_learns_each_views_gain_and_keeps_the_common_appearance(exposed_scene, tmp_path):
     quiet = lambda *_: None  # noqa: E731
-    with_maps = Trainer(exposed_scene, tmp_path / "maps", _config(), quiet)
+    with_maps = Trainer(exposed_scene, tmp_path / "maps", _config(), quiet)  # auto: the gains differ
     with_maps.prepare(resume=False)
     learnt = with_maps.run(progress=False)
-    without = train(exposed_scene, tmp_path / "plain", _config(exposure=False), progress=False, log=quiet)
+    without = train(exposed_scene, tmp_path / "plain", _config(exposure="off"), progress=False, log=quiet)
     gains = with_maps.exposures.gains()
     relative, truth = (gains / gains.mean()).numpy(), np.array(GAINS) / np.mean(GAINS)
     assert np.abs(relative - truth).max() < 0.06, relative
@@ -82,14 +82,14 @@ def test_training_learns_each_views_gain_and_keeps_the_common_appearance(exposed
 def test_resuming_a_run_without_colour_maps_names_the_file(exposed_scene, tmp_path):
     quiet = lambda *_: None  # noqa: E731
     run = tmp_path / "run"
-    trainer = Trainer(exposed_scene, run, _config(iterations=20, exposure=False), quiet)
+    trainer = Trainer(exposed_scene, run, _config(iterations=20, exposure="off"), quiet)
     trainer.prepare(resume=False)
     trainer.save_checkpoint()
     state = torch.load(run / "checkpoints" / "last.pt", weights_only=False)
     assert state["exposure"] is None
-    (run / "config.yaml").write_text(_config(iterations=20).to_yaml())  # as if exposure had been on
+    (run / "config.yaml").write_text(_config(iterations=20, exposure="on").to_yaml())  # as if it had been on
     with pytest.raises(InputError, match="colour maps of 5 training views") as error:
-        Trainer(exposed_scene, run, _config(iterations=20), quiet).prepare(resume=True)
+        Trainer(exposed_scene, run, _config(iterations=20, exposure="on"), quiet).prepare(resume=True)
     assert "last.pt" in str(error.value)
 
 
@@ -127,3 +127,30 @@ def test_a_malformed_exposure_file_names_itself(tmp_path):
     (tmp_path / "exposure.json").write_text('{"maps": {"kf_0000": [1, 2]}}')
     with pytest.raises(InputError, match=r"exposure\.json"):
         read_color_maps(tmp_path)
+
+
+def test_the_gains_between_neighbouring_images_are_measured_on_shared_lidar_points(exposed_scene, tmp_path):
+    from slam_bridge.scene import load_scene
+    from splat.exposure import GAIN_SPREAD_LIMIT, gain_spread, neighbour_gains
+
+    def ratios(root):
+        scene = load_scene(root)
+        keyframes = scene.split("train")
+        return neighbour_gains(
+            [scene.image(k) / 255.0 for k in keyframes],
+            [scene.lidar(k).points.astype(np.float64) for k in keyframes],
+            np.stack([k.T_world_cam for k in keyframes]),
+            scene.camera,
+        )
+
+    measured = ratios(exposed_scene)
+    assert np.allclose(measured, np.diff(np.log(GAINS)), atol=0.03), measured
+    plain = ratios(write_training_scene(tmp_path / "plain"))
+    assert gain_spread(plain) < GAIN_SPREAD_LIMIT < gain_spread(measured)
+
+
+def test_auto_learns_no_maps_where_the_images_share_one_exposure(tmp_path):
+    plain = write_training_scene(tmp_path / "plain")
+    result = train(plain, tmp_path / "run", _config(iterations=20), progress=False, log=lambda *_: None)
+    assert result.exposure == {} and not (tmp_path / "run" / "exposure.json").exists()
+    assert any("no colour maps learnt" in line for line in result.skips)
