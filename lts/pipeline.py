@@ -148,8 +148,9 @@ EVALUATED_FILES = ("model.pt", "mesh.ply", "collision.obj", "summary.json")
 
 
 def check_options(o: ReconstructOptions) -> Recording:
-    """Refuse a missing or unreadable recording, a bad topic map or calibration before any stage
-    starts; the recording, opened."""
+    """Refuse a missing or unreadable recording, a bad topic map, calibration or training option
+    before any stage starts; the recording, opened."""
+    train_config(o)  # a bad method, preset or --exposure stops here, not after mapping
     recording = open_recording(o.paths, topic_map=parse_topic_map(o.topics), span=o.span, camera=o.camera)
     if o.calib is None and o.init is None:
         from rig.session import find_topics

@@ -122,3 +122,21 @@ def test_a_recordings_paths_topic_map_and_span_key_its_stages(tmp_path: Path) ->
     assert ReconstructOptions(tmp_path / "s.mcap", tmp_path / "out").recording_key() == [
         str(tmp_path / "s.mcap")
     ]
+
+
+def test_a_bad_training_option_stops_lts_reconstruct_before_any_stage(tmp_path: Path) -> None:
+    from lts.pipeline import ReconstructOptions, reconstruct
+    from rig.errors import InputError
+
+    options = ReconstructOptions(tmp_path / "missing.mcap", tmp_path / "run", exposure="sometimes")
+    with pytest.raises(InputError, match="exposure"):  # before the recording is even opened
+        reconstruct(options, log=lambda *_: None)
+    assert not (tmp_path / "run").exists()
+
+
+def test_colour_maps_key_the_training_stage_only_when_not_automatic(tmp_path: Path) -> None:
+    from lts.pipeline import ReconstructOptions, train_key
+
+    session = tmp_path / "s.mcap"
+    assert "--exposure" not in train_key(ReconstructOptions(session, tmp_path))  # earlier runs stay done
+    assert train_key(ReconstructOptions(session, tmp_path, exposure="off"))[-2:] == ["--exposure", "off"]
