@@ -215,8 +215,10 @@ def test_a_kitti_drive_reconstructs_with_its_own_calibration(
 
 def test_a_drive_too_short_for_a_test_view_stops_before_training(drive: Path, tmp_path: Path) -> None:
     """3 s at one keyframe per 0.5 s holds no 8th keyframe out: lts reconstruct says so after
-    prepare instead of failing at evaluate after the whole training."""
-    args = [LTS, "reconstruct", drive, "--calib", "tf", "--out", tmp_path / "run", "--preset", "fast"]
+    prepare instead of failing at evaluate after the whole training. (By default a drive this short
+    gets one keyframe per 0.2 s, 16 of them, two held out.)"""
+    args = [LTS, "reconstruct", drive, "--calib", "tf", "--out", tmp_path / "run", "--preset", "fast",
+            "--keyframe-interval", "0.5"]  # fmt: skip
     result = subprocess.run(args, capture_output=True, text=True, timeout=300)
     assert result.returncode == 2, result.stderr[-2000:]
     last_line = result.stderr.strip().splitlines()[-1]
