@@ -30,7 +30,7 @@ DEFAULT_INTERVAL_S = 0.5
 #: ... or closer, so that a short recording still gives this many keyframes (a 7.8 s drive 39
 #: instead of 16, every eighth of them a test view) ...
 MIN_KEYFRAMES = 40
-#: ... but never closer than this (a 3 s recording gives 15, not one per frame).
+#: ... but never closer than this (a 3 s recording gives 15 or 16, not one per frame).
 MIN_INTERVAL_S = 0.2
 
 

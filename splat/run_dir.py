@@ -11,7 +11,7 @@
     summary.json           TrainResult: time, triangles, test metrics, skips, densification log
     renders/NAME.png       test-view renders of the final model (through their colour maps)
     exposure.json          the colour map of every keyframe (splat.exposure): {"test_views": how the
-                           held-out ones were chosen, "maps": {NAME: 3x3}}; absent without --exposure
+                           held-out ones were chosen, "maps": {NAME: 3x3}}; absent when it learnt none
     mesh.ply|obj|glb       the exported triangles (opaque); collision.ply (+ .obj) for physics
 """
 
