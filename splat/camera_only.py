@@ -81,7 +81,7 @@ def seen_through(
     votes = np.zeros(len(points), dtype=np.int64)
     for T_world_cam, depth in zip(poses_world_cam, depths, strict=True):
         nearest = minimum_filter(np.where(depth > 0, depth, np.inf), size=SEE_THROUGH_WINDOW_PX)
-        index, rows, cols, z = _in_image(points, camera, T_world_cam)
+        index, rows, cols, z = in_view(points, camera, T_world_cam)
         margin = np.maximum(EXPLAINED_MIN_M, EXPLAINED_FRACTION * z)
         beyond = nearest[rows, cols]
         votes[index] += np.isfinite(beyond) & (beyond > z + margin)
@@ -97,16 +97,17 @@ def beyond_lidar_reach(
     beyond = np.zeros(len(points), dtype=bool)
     for T_world_cam, depth in zip(poses_world_cam, depths, strict=True):
         above = above_lidar(torch.as_tensor(depth)).numpy()
-        index, rows, cols, _ = _in_image(points, camera, T_world_cam)
+        index, rows, cols, _ = in_view(points, camera, T_world_cam)
         beyond[index[above[rows, cols]]] = True
     return beyond
 
 
-def _in_image(
+def in_view(
     points: np.ndarray, camera: CameraModel, T_world_cam: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Of world points ``(N, 3)``, those in the image of ``camera`` at ``T_world_cam``: their indices
-    ``(M,)``, the rows and columns of their nearest pixels ``(M,)`` and their depths ``(M,)``."""
+    """Of world points ``(N, 3)``, those in the image of ``camera`` at ``T_world_cam`` ``(4, 4)``:
+    their indices ``(M,)``, the rows and columns of their nearest pixels ``(M,)`` and their depths
+    ``(M,)``."""
     in_camera = transform_points(invert(T_world_cam), points)
     pixels = camera.project(in_camera)
     inside = camera.in_image(pixels)

@@ -31,6 +31,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from rig.transforms import transform_points
+from splat.camera_only import in_view
+
 #: How the test views' maps were chosen (``exposure.json``'s ``test_views``).
 INTERPOLATED = "interpolated in time between the training views before and after"
 IDENTITY = "the identity (interpolation did not predict the training views' maps)"
@@ -125,10 +128,8 @@ def neighbour_gains(
     grey = [image.mean(axis=2) for image in images]
     ratios = np.zeros(max(len(images) - 1, 0))
     for i in range(len(ratios)):
-        before = _sampled(grey[i], lidar_points[i], camera)
-        world = lidar_points[i] @ poses_world_cam[i][:3, :3].T + poses_world_cam[i][:3, 3]
-        T_cam_world = np.linalg.inv(poses_world_cam[i + 1])
-        after = _sampled(grey[i + 1], world @ T_cam_world[:3, :3].T + T_cam_world[:3, 3], camera)
+        world = transform_points(poses_world_cam[i], lidar_points[i])
+        before, after = (_sampled(grey[j], world, camera, poses_world_cam[j]) for j in (i, i + 1))
         usable = np.isfinite(before) & np.isfinite(after) & (before > 0.04) & (after > 0.04)
         usable &= (before < 0.96) & (after < 0.96)
         if usable.sum() >= MIN_SHARED_POINTS:
@@ -149,14 +150,10 @@ def gain_spread(log_ratios: np.ndarray) -> float:
     return float(np.ptp(np.concatenate([[0.0], np.cumsum(log_ratios)])))
 
 
-def _sampled(grey: np.ndarray, points_cam: np.ndarray, camera) -> np.ndarray:
-    """``(M,)`` grey level at the pixels of camera-frame points ``(M, 3)`` (NaN outside the image
-    or behind the camera)."""
-    values = np.full(len(points_cam), np.nan)
-    front = points_cam[:, 2] > 0.1
-    pixels = camera.project(points_cam[front])
-    inside = camera.in_image(pixels)
-    cols, rows = np.round(pixels[inside]).astype(np.int64).T
-    index = np.flatnonzero(front)[inside]
-    values[index] = grey[rows.clip(0, grey.shape[0] - 1), cols.clip(0, grey.shape[1] - 1)]
+def _sampled(grey: np.ndarray, points: np.ndarray, camera, T_world_cam: np.ndarray) -> np.ndarray:
+    """``(M,)`` grey level of ``grey`` ``(H, W)`` at the pixels of world points ``(M, 3)`` seen by
+    ``camera`` at ``T_world_cam`` (NaN outside its image or behind it)."""
+    values = np.full(len(points), np.nan)
+    index, rows, cols, _ = in_view(points, camera, T_world_cam)
+    values[index] = grey[rows, cols]
     return values
