@@ -48,6 +48,7 @@ from rig.mesh_rays import mesh_raycaster
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.background_mask import scored_background_mask
+from splat.exposure import through_color_map
 from splat.model import TriangleModel, load_model
 
 #: The fields ``lts eval RUN_DIR --json`` promises (../shared/DESIGN.md), in this order.
@@ -216,9 +217,8 @@ def _photometric(
         lidar = scene.depth(keyframe)
         above = scored_background_mask(torch.as_tensor(lidar, device=model.device))
         out = _render(model, scene, keyframe.T_world_cam, above)
-        render = _as_rgb(out.rgb)
-        if color_maps and keyframe.name in color_maps:
-            render = np.clip(render @ color_maps[keyframe.name].T, 0.0, 1.0).astype(render.dtype)
+        matrix = (color_maps or {}).get(keyframe.name)
+        render = _as_rgb(through_color_map(out.rgb, None if matrix is None else torch.as_tensor(matrix)))
         target = scene.image(keyframe).astype(np.float32) / 255.0
         alpha = out.alpha.detach().cpu().numpy()
         aligned_psnrs.append(psnr(color_aligned(render, target), target))

@@ -79,6 +79,12 @@ class ViewExposures:
         }
 
 
+def through_color_map(rgb: Tensor, matrix: Tensor | None) -> Tensor:
+    """A render ``(H, W, 3)`` seen through a colour ``matrix`` ``(3, 3)`` (None: as it is), clipped
+    to [0, 1]: how a held-out view is scored."""
+    return (rgb if matrix is None else rgb @ matrix.to(rgb).T).clamp(0, 1)
+
+
 def interpolated(offsets: Tensor, times: np.ndarray, at: np.ndarray) -> Tensor:
     """Map offsets ``(Q, 3, 3)`` at times ``at`` ``(Q,)``, linear in time between the offsets
     ``(V, 3, 3)`` of the views at ``times`` ``(V,)`` before and after (the nearest beyond the ends)."""

@@ -10,6 +10,7 @@ from torch import Tensor
 
 from rig.transforms import distance_and_angle, invert
 from slam_bridge.scene import Keyframe, Scene
+from splat.exposure import through_color_map
 
 
 @dataclass
@@ -45,7 +46,7 @@ class View:
     def scored_rgb(self, rgb: Tensor) -> Tensor:
         """A render ``(H, W, 3)`` of this view as it is scored: through :attr:`color_map`, clipped to
         [0, 1]."""
-        return (rgb if self.color_map is None else rgb @ self.color_map.to(rgb).T).clamp(0, 1)
+        return through_color_map(rgb, self.color_map)
 
 
 def load_views(
