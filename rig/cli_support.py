@@ -15,6 +15,7 @@ from typing import Any, TextIO
 import click
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 from rig.errors import InputError, OutOfRangeError
 from rig.native_output import native_output_to_stderr
@@ -92,7 +93,8 @@ def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
             if isinstance(code, int) and code != 0:
                 sys.exit(code)
         except (InputError, OutOfRangeError) as exc:
-            console.print(f"[bold red]error:[/] {exc}", highlight=False, markup=True)
+            # The message is text, not markup: a path or an extra's name in brackets must stay.
+            console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, markup=True)
             sys.exit(EXIT_BAD_INPUT)
         except typer.Exit as exc:
             sys.exit(exc.exit_code)
