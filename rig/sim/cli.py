@@ -14,8 +14,9 @@ def sim(
     preset: str = typer.Option(
         "room",
         "--preset",
-        help="Scene preset: room, corridor, stairs, boards (four chessboards, for calibration) or street "
-        "(a city street driven by a car: traffic, sky, a 64-beam LiDAR).",
+        help="Scene preset: room, corridor, floor (a 170 m corridor through a building floor, 2 minutes: "
+        "for block training), stairs, boards (four chessboards, for calibration) or street (a city street "
+        "driven by a car: traffic, sky, a 64-beam LiDAR).",
     ),
     mesh: Path | None = typer.Option(
         None, "--mesh", help="User mesh (PLY/OBJ/GLB, vertex colours or texture)."
@@ -25,7 +26,9 @@ def sim(
     ),
     rate: float = typer.Option(30.0, "--rate", help="Pose rate (Hz) of a trajectory file without times."),
     seed: int = typer.Option(0, "--seed", help="Seed: the same seed gives a bit-identical run."),
-    duration: float = typer.Option(20.0, "--duration", help="Seconds of motion (presets)."),
+    duration: float | None = typer.Option(
+        None, "--duration", help="Seconds of motion (presets). [default: 20, floor: 120]", show_default=False
+    ),
     quick: bool = typer.Option(False, "--quick", help="Small run for tests: 3 s, 160x120."),
     carrier: str | None = typer.Option(
         None,

@@ -13,8 +13,16 @@ from rig.data_file import load_data_file
 from rig.errors import InputError
 from rig.sim.scenes import PRESETS
 
-#: The rig of the indoor presets and user meshes; a preset may change these (``sensor_defaults``).
-SENSOR_DEFAULTS = {"carrier": "wheeled", "lidar": "mid360", "width": 320, "height": 240, "max_range_m": 40.0}
+#: The rig and run length of the indoor presets and user meshes; a preset may change these
+#: (``sensor_defaults``).
+SENSOR_DEFAULTS = {
+    "duration_s": 20.0,
+    "carrier": "wheeled",
+    "lidar": "mid360",
+    "width": 320,
+    "height": 240,
+    "max_range_m": 40.0,
+}
 #: What ``--quick`` changes: a short run at a small image size, for tests and smoke checks.
 QUICK = {"duration_s": 3.0, "width": 160, "height": 120, "lidar_points": 8000}
 
@@ -24,11 +32,11 @@ class SimConfig:
     """Everything that determines a simulated run (with the seed, runs are bit-reproducible).
 
     Attributes:
-        preset: procedural scene (``room``, ``corridor``, ``stairs``); ignored with ``mesh``.
+        preset: procedural scene (a key of :data:`~rig.sim.scenes.PRESETS`); ignored with ``mesh``.
         mesh, trajectory: a user mesh and camera-to-world trajectory (OpenCV camera axes)
             instead of a preset; ``trajectory_rate_hz`` times trajectories without stamps.
         seed: seeds scene layout, textures, path wobble, clocks and every noise.
-        duration_s: seconds of motion along a preset's path.
+        duration_s: seconds of motion along a preset's path (the preset's: 20, ``floor`` 120).
         carrier: ``wheeled`` (camera 0.35–0.55 m high), ``handheld`` (1.3–1.5 m) or ``car``
             (1.6–1.7 m).
         fps, width, height, camera_model: the camera (``pinhole`` or ``fisheye``).
@@ -47,7 +55,7 @@ class SimConfig:
     trajectory: str | None = None
     trajectory_rate_hz: float = 30.0
     seed: int = 0
-    duration_s: float = 20.0
+    duration_s: float | None = None
     carrier: str | None = None
     fps: float = 30.0
     width: int | None = None

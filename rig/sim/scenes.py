@@ -137,6 +137,59 @@ def corridor(rng: np.random.Generator) -> SceneMesh:
     return join_parts(parts)
 
 
+#: The ``floor`` preset's corridor: five 30 m legs joined by 5 m bends, 170 m in all.
+FLOOR_LEG_M, FLOOR_BEND_M, FLOOR_LEGS = 30.0, 5.0, 5
+
+
+def _floor_centreline() -> np.ndarray:
+    """``(2 * FLOOR_LEGS, 2)`` corners of the ``floor`` corridor: legs along x, alternating direction."""
+    corners = []
+    for leg in range(FLOOR_LEGS):
+        ends = (0.0, FLOOR_LEG_M) if leg % 2 == 0 else (FLOOR_LEG_M, 0.0)
+        corners += [(x, leg * FLOOR_BEND_M) for x in ends]
+    return np.array(corners)
+
+
+def _floor_path() -> tuple[tuple[float, float], ...]:
+    """The robot's waypoints along the ``floor`` corridor, its corners cut by 1 m (as ``corridor``'s)."""
+    c = _floor_centreline()
+    points = [tuple(c[0] + (0.5, 0.0))]
+    for before, corner, after in zip(c[:-2], c[1:-1], c[2:], strict=True):
+        into = (corner - before) / np.linalg.norm(corner - before)
+        out = (after - corner) / np.linalg.norm(after - corner)
+        points += [tuple(corner - into), tuple(corner + out)]
+    points.append(tuple(c[-1] - (c[-1] - c[-2]) / np.linalg.norm(c[-1] - c[-2]) * 0.5))
+    return tuple((float(x), float(y)) for x, y in points)
+
+
+def floor(rng: np.random.Generator) -> SceneMesh:
+    """A floor of a building as one long corridor (2.4 m wide, 2.6 m high): five 30 m legs joined by
+    5 m bends; each leg has its own wall finish, pillars every 3 m on alternating sides and a few
+    boxes and cabinets along the walls, so that no two stretches look alike."""
+    width, height = 2.4, 2.6
+    centreline = _floor_centreline()
+    parts = [tunnel(centreline, width, height, "plaster", "tiles")]
+    finishes = ("bricks", "wood", "concrete", "paint_blue", "paint_red")
+    for leg, (a, b) in enumerate(itertools.pairwise(centreline)):
+        length = float(np.linalg.norm(b - a))
+        direction = (b - a) / length
+        side = np.array([-direction[1], direction[0]])
+        finish = finishes[(leg // 2) % len(finishes)]  # a leg and the bend after it
+        for k, along in enumerate(np.arange(2.0, length - 1.5, 3.0)):
+            s = 1 if k % 2 else -1
+            x, y = a + direction * (along + rng.uniform(-0.2, 0.2)) + side * s * (width / 2 - 0.12)
+            size = (0.3, 0.24) if direction[0] else (0.24, 0.3)
+            parts.append(box((*size, height), (x, y, height / 2), finish))
+        for along in rng.uniform(1.5, length - 1.5, max(int(length // 6), 1)):
+            s = rng.choice((-1, 1))
+            extent = rng.uniform((0.3, 0.3, 0.4), (0.7, 0.5, 1.4))
+            x, y = a + direction * along + side * s * (width / 2 - extent[1] / 2 - 0.05)
+            material = ("cardboard", "metal", "fabric", "wood")[int(rng.integers(4))]
+            yaw = float(np.arctan2(direction[1], direction[0]))
+            parts.append(box(tuple(extent), (x, y, extent[2] / 2), material, yaw))
+    return join_parts(parts)
+
+
 def stairs(rng: np.random.Generator) -> SceneMesh:
     """A 7 × 5 × 3.2 m hall with a flight of five 15 cm steps up to a landing, and a few boxes."""
     parts = [shell((7.0, 5.0, 3.2), "concrete")]
@@ -229,6 +282,14 @@ PRESETS: dict[str, Preset] = {
         ((1.0, 1.0), (3.0, 0.9), (4.8, 1.4), (5.2, 2.4), (4.0, 2.7), (2.5, 2.6), (1.2, 2.0)),
         True,
         _extrinsic((0.5, 1.5, -1.0), (-0.03, -0.07, -0.05)),
+    ),
+    "floor": Preset(
+        "floor",
+        floor,
+        _floor_path(),
+        False,
+        _extrinsic((1.0, 0.5, -1.0), (0.01, -0.1, -0.02)),
+        sensor_defaults={"duration_s": 120.0},
     ),
     "boards": Preset(
         "boards",
