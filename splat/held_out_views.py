@@ -8,9 +8,22 @@ import cv2
 import numpy as np
 import torch
 
+from slam_bridge.scene import Keyframe, Scene
+from splat.background_mask import scored_background_mask
+from splat.config import TrainConfig
 from splat.losses import dssim
 from splat.model import TriangleModel
-from splat.views import View
+from splat.views import View, load_views
+
+
+def load_held_out_views(scene: Scene, keyframes: list[Keyframe], config: TrainConfig) -> list[View]:
+    """The views of held-out ``keyframes`` as they are scored: with a trained background, it shows
+    only above the LiDAR's reach (:func:`~splat.background_mask.scored_background_mask`)."""
+    views = load_views(scene, keyframes, device=config.device)
+    if config.background != "none":
+        for view in views:
+            view.background_mask = scored_background_mask(view.depth)
+    return views
 
 
 @torch.no_grad()

@@ -21,6 +21,7 @@ from rig.atomic_file import atomic_path
 from rig.camera import CameraModel
 from rig.cli_support import console
 from rig.errors import InputError
+from rig.transforms import invert
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.background_mask import scored_background_mask
@@ -28,7 +29,7 @@ from splat.coarse_views import coarse_iterations, half_camera, half_view
 from splat.config import TrainConfig, load_config
 from splat.exposure import GAIN_SPREAD_LIMIT, ViewExposures, gain_spread, held_out_maps, neighbour_gains
 from splat.finite import all_finite
-from splat.held_out_views import evaluate_views, write_renders
+from splat.held_out_views import evaluate_views, load_held_out_views, write_renders
 from splat.initialise import build_model, initial_triangles
 from splat.losses import image_moments, training_loss
 from splat.model import TriangleModel, save_model
@@ -65,6 +66,7 @@ class TrainResult:
     densification: list[dict] = field(default_factory=list)
     export: dict = field(default_factory=dict)
     exposure: dict = field(default_factory=dict)
+    blocks: list[dict] = field(default_factory=list)
 
 
 @dataclass
@@ -172,10 +174,9 @@ class Trainer:
     def _load_views(self) -> None:
         device = self.config.device
         self.train_views: list[View] = load_views(self.scene, self.train_keyframes, device=device)
-        self.test_views: list[View] = load_views(self.scene, self.test_keyframes, device=device)
-        if self.config.background != "none":
-            train_masked = self.config.background_where == "above-lidar"
-            for view in self.test_views + (self.train_views if train_masked else []):
+        self.test_views: list[View] = load_held_out_views(self.scene, self.test_keyframes, self.config)
+        if self.config.background != "none" and self.config.background_where == "above-lidar":
+            for view in self.train_views:
                 view.background_mask = scored_background_mask(view.depth)
         masked = [float(v.moving_mask.float().mean()) for v in self.train_views if v.moving_mask is not None]
         if masked:
@@ -419,8 +420,9 @@ class Trainer:
         else:
             self.state.evals_without_gain += 1
 
-    def run(self, progress: bool = True) -> TrainResult:
-        """Train from the current state to the end (or an early stop); SIGINT saves a checkpoint."""
+    def run(self, progress: bool = True, on_iteration: Callable[[int], None] | None = None) -> TrainResult:
+        """Train from the current state to the end (or an early stop); SIGINT saves a checkpoint.
+        ``on_iteration`` is called with the number of iterations done after each one."""
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
         config = self.config
@@ -442,6 +444,8 @@ class Trainer:
                         self._maybe_stop_early()
                     if done % config.checkpoint_every == 0:
                         self.save_checkpoint()
+                    if on_iteration is not None:
+                        on_iteration(done)
                     rate = self.state.iteration / max(self.state.elapsed_s, 1e-9)
                     bar.update(
                         task, completed=done, info=_progress_text(losses, self.model.n_triangles, rate)
@@ -473,7 +477,7 @@ class Trainer:
         test = self.state.last_test
         exposure = self._write_color_maps()
         write_renders(self.model, self.test_views, self.scene.camera, layout.renders_dir(self.run_dir))
-        export = _export(self.model, self.scene, self.train_keyframes, self.train_views, self.run_dir)
+        export = export_run(self.model, self.scene, self.train_keyframes, self.run_dir)
         c, s = self.config, self.state
         result = TrainResult(
             str(self.run_dir), c.method, c.preset, c.device, s.iteration, round(s.elapsed_s, 3),
@@ -510,11 +514,12 @@ def _progress_text(losses: dict[str, float], n_triangles: int, rate: float) -> s
 
 
 @torch.no_grad()
-def seen_triangles(model: TriangleModel, views: list[View], camera) -> torch.Tensor:
-    """``(F,)`` bool: the triangle dominates at least one pixel of some view."""
+def seen_triangles(model: TriangleModel, keyframes: list[Keyframe], camera: CameraModel) -> torch.Tensor:
+    """``(F,)`` bool: the triangle dominates at least one pixel of some keyframe's view."""
     seen = torch.zeros(model.n_triangles, dtype=torch.bool)
-    for view in views:
-        dominant = model.render(camera, view.T_cam_world).dominant
+    for k in keyframes:
+        T_cam_world = torch.as_tensor(invert(k.T_world_cam), dtype=torch.float32, device=model.device)
+        dominant = model.render(camera, T_cam_world).dominant
         seen[dominant[dominant >= 0].cpu()] = True
     return seen
 
@@ -530,12 +535,13 @@ def camera_only_triangles(model: TriangleModel, scene: Scene, keyframes: list[Ke
     return unexplained_points(centroids, lidar_points(scene, keyframes), centres)
 
 
-def _export(
-    model: TriangleModel, scene: Scene, keyframes: list[Keyframe], views: list[View], run_dir: Path
-) -> dict:
+def export_run(model: TriangleModel, scene: Scene, keyframes: list[Keyframe], run_dir: Path) -> dict:
+    """Export ``model``'s meshes into ``run_dir`` (:func:`splat.export.export_mesh`): the collision
+    mesh keeps the triangles seen from ``keyframes``, the render mesh flags those no LiDAR return of
+    theirs explains; returns the export's summary for ``summary.json``."""
     from splat.export import export_mesh
 
-    seen = seen_triangles(model, views, scene.camera)
+    seen = seen_triangles(model, keyframes, scene.camera)
     camera_only = camera_only_triangles(model, scene, keyframes)
     result = export_mesh(model, run_dir, seen=seen, camera_only=camera_only)
     return json.loads(json.dumps(asdict(result), default=str))
@@ -549,10 +555,11 @@ def train(
     resume: bool = False,
     progress: bool = True,
     log: Callable = console.print,
+    on_iteration: Callable[[int], None] | None = None,
 ) -> TrainResult:
     """Train ``config`` on ``scene`` (a scene folder, or a :class:`Scene` already loaded from one,
     whose files are then not read again) into ``run_dir`` (``resume``: continue from ``run_dir``'s
-    last checkpoint, bit for bit on the CPU)."""
+    last checkpoint, bit for bit on the CPU); ``on_iteration`` is told each iteration done."""
     trainer = Trainer(scene, run_dir, config, log)
     trainer.prepare(resume)
-    return trainer.run(progress)
+    return trainer.run(progress, on_iteration)
