@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml scripts/ensure_system_deps.sh
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet torch==$(TORCH_VERSION)
-	$(BIN)/python -m pip install --quiet -e '.[dev,ouster,physics]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,ouster,physics,blocks]'
 	$(BIN)/python -c "import open3d, torch, cv2, rig, calib, slam_bridge, splat, eval" 
 	touch $(STAMP)
 

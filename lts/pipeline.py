@@ -70,6 +70,8 @@ class ReconstructOptions:
     span: TimeSpan | None = None
     camera: int | None = None
     exposure: str = "auto"
+    blocks: bool = False
+    ray_address: str | None = None
 
     @property
     def paths(self) -> list[Path]:
@@ -132,7 +134,7 @@ def reconstruct(o: ReconstructOptions, log: Callable[[str], None] = print) -> Re
     config = train_config(o)
     stages.run(
         "train", ["lts train", *train_key(o)], [scene], train / "model.pt",
-        lambda: train_run(loaded_scene(), train, config, scene_changed=prepared.status == "ran", log=log),
+        lambda: train_run(loaded_scene(), train, config, o, scene_changed=prepared.status == "ran", log=log),
     )  # fmt: skip
 
     key = ["lts eval", *(["--gt", str(o.gt)] if o.gt is not None else [])]
@@ -151,6 +153,10 @@ def check_options(o: ReconstructOptions) -> Recording:
     """Refuse a missing or unreadable recording, a bad topic map, calibration or training option
     before any stage starts; the recording, opened."""
     train_config(o)  # a bad method, preset or --exposure stops here, not after mapping
+    if o.blocks:
+        from splat.blocks.ray_tasks import import_ray
+
+        import_ray()  # without the blocks extra, say so before the calibration and the mapper run
     recording = open_recording(o.paths, topic_map=parse_topic_map(o.topics), span=o.span, camera=o.camera)
     if o.calib is None and o.init is None:
         from rig.session import find_topics
@@ -256,6 +262,7 @@ def train_key(o: ReconstructOptions) -> list[str]:
     """The training options as ``lts train`` takes them."""
     key = ["--method", o.method, "--preset", o.preset, "--seed", str(o.seed), "--device", o.device]
     key += [] if o.exposure == "auto" else ["--exposure", o.exposure]
+    key += ["--blocks"] if o.blocks else []
     return key + (["--iterations", str(o.iterations)] if o.iterations is not None else [])
 
 
@@ -269,26 +276,39 @@ def train_config(o: ReconstructOptions) -> TrainConfig:
 
 
 def train_run(
-    scene: Scene, run_dir: Path, config: TrainConfig, scene_changed: bool, log: Callable[[str], None]
+    scene: Scene,
+    run_dir: Path,
+    config: TrainConfig,
+    o: ReconstructOptions,
+    scene_changed: bool,
+    log: Callable[[str], None],
 ) -> None:
-    """The train stage: continues an interrupted run made with the same options on the same scene;
-    a run made otherwise is set aside as ``train.previous-N`` and training starts afresh."""
+    """The train stage (in blocks on Ray with ``o.blocks``): continues an interrupted run made with
+    the same options on the same scene; a run made otherwise is set aside as ``train.previous-N``
+    and training starts afresh."""
+    from splat.blocks.block_run import PARTITION_FILE, train_in_blocks
+    from splat.blocks.options import BlockOptions
     from splat.config import load_config
     from splat.run_dir import checkpoint_path, config_path
     from splat.trainer import train
 
     resume = False
+    in_blocks = (run_dir / PARTITION_FILE).is_file()
     if config_path(run_dir).is_file():
-        if scene_changed or load_config(config_path(run_dir)) != config:
+        changed = in_blocks != o.blocks or load_config(config_path(run_dir)) != config
+        if scene_changed or changed:
             n = 1
             while (run_dir.parent / f"{run_dir.name}.previous-{n}").exists():
                 n += 1
             run_dir.rename(run_dir.parent / f"{run_dir.name}.previous-{n}")
             log(f"[train] options or scene changed: the earlier run is kept as {run_dir.name}.previous-{n}")
-        elif checkpoint_path(run_dir).is_file():
+        elif checkpoint_path(run_dir).is_file() or in_blocks:
             log("[train] an earlier attempt stopped part-way: continuing from its checkpoint")
             resume = True
-    train(scene, run_dir, config, resume=resume)
+    if o.blocks:
+        train_in_blocks(scene.root, run_dir, config, BlockOptions(ray_address=o.ray_address), resume=resume)
+    else:
+        train(scene, run_dir, config, resume=resume)
 
 
 def evaluate(run_dir: Path, scene: Scene, gt: Path | None, log: Callable[[str], None]) -> None:

@@ -108,6 +108,14 @@ def reconstruct_command(
         "--exposure",
         help="auto, on or off: a colour matrix per training image (see lts train --help).",
     ),
+    blocks: bool = typer.Option(
+        False,
+        "--blocks",
+        help="Train in spatial blocks on Ray and merge them (long trajectories; see lts train --help).",
+    ),
+    ray_address: str | None = typer.Option(
+        None, "--ray-address", help="A Ray cluster for --blocks (default: a local Ray instance)."
+    ),
     keyframe_interval: float | None = typer.Option(
         None,
         "--keyframe-interval",
@@ -136,7 +144,7 @@ def reconstruct_command(
     options = ReconstructOptions(
         session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval,
         max_size=max_size, downscale=downscale, topics=topics, span=time_span(start, duration), camera=camera,
-        exposure=exposure,
+        exposure=exposure, blocks=blocks, ray_address=ray_address,
     )  # fmt: skip
     result, _ = _run_stages(lambda: (reconstruct(options, _log), []))
     summary = _summary(result)

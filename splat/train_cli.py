@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from rig.cli_support import console, emit_json
+from splat.blocks.options import BlockOptions
 from splat.config import METHODS, PRESETS, TrainConfig
 
 
@@ -49,6 +50,27 @@ def train_command(
     resume: bool = typer.Option(
         False, "--resume", help="Continue the run in --out from its last checkpoint."
     ),
+    blocks: bool = typer.Option(
+        False,
+        "--blocks",
+        help="Train long trajectories as spatial blocks on Ray and merge them into one run (needs the "
+        "blocks extra). A scene within one block's budgets is one block.",
+    ),
+    block_keyframes: int = typer.Option(
+        BlockOptions.keyframe_budget, "--block-keyframes", min=1, help="Most training keyframes per block."
+    ),
+    block_faces: int = typer.Option(
+        BlockOptions.face_budget, "--block-faces", min=1, help="Most warm-start mesh faces per block core."
+    ),
+    block_margin: float = typer.Option(
+        BlockOptions.margin_m, "--block-margin", min=0.0, help="Overlap margin around each block (m)."
+    ),
+    ray_address: str | None = typer.Option(
+        None,
+        "--ray-address",
+        help="A Ray cluster to run the blocks on (ray start --head prints it); without it a local Ray "
+        "instance uses this machine's CPUs. The scene and --out must be on a file system every node sees.",
+    ),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object (the run summary) on stdout."),
 ) -> None:
@@ -66,7 +88,13 @@ def train_command(
         max_triangles=max_triangles, coarse_until=half_resolution, exposure=exposure,
     )  # fmt: skip
     try:
-        result = train(scene, out, config, resume=resume, progress=progress)
+        if blocks:
+            from splat.blocks.block_run import train_in_blocks
+
+            options = BlockOptions(block_keyframes, block_faces, block_margin, ray_address)
+            result = train_in_blocks(scene, out, config, options, resume=resume, progress=progress)
+        else:
+            result = train(scene, out, config, resume=resume, progress=progress)
     except TrainingInterruptedError as exc:
         console.print(str(exc), highlight=False)
         raise typer.Exit(130) from None
@@ -86,6 +114,14 @@ def train_command(
                       f"channel mixing up to {e['mixing_max']:.3f}", highlight=False)  # fmt: skip
     for line in result.skips:
         console.print(f"  skipped: {line}", highlight=False)
+    for b in result.blocks:
+        resumed = "" if b["resumed_at"] is None else f", resumed at iteration {b['resumed_at']}"
+        console.print(
+            f"  block {b['index']}: {b['train_keyframes']} training keyframes, {b['iterations']} "
+            f"iterations in {b['wall_s']:.0f} s, peak {b['peak_rss_mb']:.0f} MB, {b['triangles_kept']} of "
+            f"{b['triangles']} triangles kept{resumed}",
+            highlight=False,
+        )
     console.print(f"  mesh: {out / 'mesh.ply'}  collision: {out / 'collision.ply'}", highlight=False)
     if json_out:
         from dataclasses import asdict

@@ -47,23 +47,27 @@ def corner_mesh(n: int = 12, size: float = 4.0) -> trimesh.Trimesh:
     )
 
 
-def camera_poses(count: int = 6) -> np.ndarray:
-    """``(count, 4, 4)`` camera-to-world poses 1 m high, looking along +y and slightly down."""
+def camera_poses(count: int = 6, spread_m: float = 1.2, pitch_deg: float = 20.0) -> np.ndarray:
+    """``(count, 4, 4)`` camera-to-world poses 1 m high along ``spread_m`` of x, looking along +y and
+    ``pitch_deg`` down."""
     poses = []
     for i in range(count):
         yaw = np.radians(-15 + 30 * i / max(count - 1, 1))
-        pitch = np.radians(20)
+        pitch = np.radians(pitch_deg)
         forward = np.array([np.sin(yaw) * np.cos(pitch), np.cos(yaw) * np.cos(pitch), -np.sin(pitch)])
         right = np.cross(forward, [0, 0, 1.0])
         right /= np.linalg.norm(right)
         down = np.cross(forward, right)
         R = np.column_stack([right, down, forward])
-        poses.append(make_transform(R, np.array([-0.6 + 1.2 * i / max(count - 1, 1), 0.0, 1.0])))
+        poses.append(make_transform(R, np.array([spread_m * (i / max(count - 1, 1) - 0.5), 0.0, 1.0])))
     return np.stack(poses)
 
 
-def write_training_scene(root: Path, n_views: int = 6, seed: int = 0) -> Path:
-    """Write a scene folder (``lts prepare`` layout) at ``root``; the last view is the test view."""
+def write_training_scene(
+    root: Path, n_views: int = 6, seed: int = 0, spread_m: float = 1.2, pitch_deg: float = 20.0
+) -> Path:
+    """Write a scene folder (``lts prepare`` layout) at ``root`` seen from :func:`camera_poses`; the
+    last view is the test view."""
     rng = np.random.default_rng(seed)
     truth = corner_mesh(16)
     tris = torch.as_tensor(np.asarray(truth.vertices)[np.asarray(truth.faces)], dtype=torch.float64)
@@ -77,7 +81,7 @@ def write_training_scene(root: Path, n_views: int = 6, seed: int = 0) -> Path:
     for name in ("images", LIDAR_DIR, "normals"):
         (root / name).mkdir(parents=True, exist_ok=True)
     keyframes = []
-    for i, pose in enumerate(camera_poses(n_views)):
+    for i, pose in enumerate(camera_poses(n_views, spread_m, pitch_deg)):
         out = render(
             tris.reshape(-1, 3), torch.arange(3 * n).view(n, 3), face_colors.repeat_interleave(3, 0),
             torch.full((3 * n,), 1.0, dtype=torch.float64), 1e-3, CAMERA,
