@@ -43,6 +43,12 @@ def eval_command(
         help="RUN form: LPIPS weights file (lts weights download writes one to the cache, which is the "
         "default); without weights LPIPS is null.",
     ),
+    seams: Path | None = typer.Option(
+        None,
+        "--seams",
+        help="RUN form: check holes and fall-through at the seams of this block run's partition.json "
+        "(default: the run's own, when it was trained with --blocks).",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Evaluate a training run (photometry, geometry, leaned-view holes, physics, report), or compare
@@ -56,7 +62,7 @@ def eval_command(
         from eval.run_eval_cli import evaluate_run_command
 
         evaluate_run_command(
-            run_dir, gt, threshold, samples, report, physics, device, lpips_weights, json_out
+            run_dir, gt, threshold, samples, report, physics, device, lpips_weights, json_out, seams
         )
         return
     if mesh is None:

@@ -42,12 +42,14 @@ from eval.lpips_net import LpipsAlex
 from eval.lpips_weights import HOW_TO_GET, load_lpips
 from eval.moving_pixels import mover_names, moving_pixel_masks
 from eval.photometric import color_aligned, lpips, psnr, ssim
+from eval.seams import seam_drops, seam_holes
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from rig.mesh_rays import mesh_raycaster
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.background_mask import scored_background_mask
+from splat.blocks.partition import PARTITION_FILE, Partition, read_partition
 from splat.exposure import through_color_map
 from splat.model import TriangleModel, load_model
 
@@ -98,6 +100,15 @@ LIDAR_FIELDS = (
     "lidar_distance_median_m",
     "lidar_threshold_m",
     "lidar_points",
+)
+#: Holes and fall-through along a block run's seams (:mod:`eval.seams`).
+SEAM_FIELDS = (
+    "seam_blocks",
+    "seam_views",
+    "seam_hole_fraction",
+    "off_seam_hole_fraction",
+    "seam_physics_probes",
+    "seam_fall_through_rate",
 )
 EVAL_FILE = "eval.json"
 MESH_FILE = "mesh.ply"
@@ -376,6 +387,49 @@ def _physics(run_dir: Path, scene: Scene, truth, metrics: dict, reasons: dict) -
     )
 
 
+def _read_seams(run_dir: Path, seams: str | Path | None) -> Partition | None:
+    """The partition whose seams are checked: ``seams`` (an error naming it when it is not a
+    partition file), else the run's own ``partition.json``, else None."""
+    path = Path(seams) if seams is not None else run_dir / PARTITION_FILE
+    if seams is not None and not path.is_file():
+        raise InputError("no such partition file (a block run's partition.json)", path=path, field="--seams")
+    return read_partition(path) if path.is_file() else None
+
+
+def _seams(
+    run_dir: Path,
+    partition: Partition | None,
+    model: TriangleModel,
+    scene: Scene,
+    reference: trimesh.Trimesh | None,
+    truth,
+    physics: bool,
+    metrics: dict,
+    reasons: dict,
+    log: Callable,
+) -> None:
+    """The ``seam_*`` fields (:mod:`eval.seams`) for ``partition``'s seams; null with the reason
+    when there is none."""
+    metrics.update(dict.fromkeys(SEAM_FIELDS))
+    if partition is None:
+        reasons.update(
+            dict.fromkeys(SEAM_FIELDS, "not trained in blocks (lts train --blocks; or pass --seams)")
+        )
+        return
+    metrics["seam_blocks"] = len(partition.blocks)
+    if reference is None:
+        reasons["seam_hole_fraction"] = reasons["hole_fraction_leaned"]
+    else:
+        log(f"rendering leaned views at the seams of {len(partition.blocks)} blocks")
+        metrics.update(seam_holes(model, scene, reference, partition))
+    collision = next((run_dir / n for n in COLLISION_FILES if (run_dir / n).is_file()), None)
+    if truth is None or not physics or collision is None or importlib.util.find_spec("pybullet") is None:
+        reasons["seam_fall_through_rate"] = "needs --gt, --physics, a collision mesh and pybullet"
+        return
+    log("dropping physics probes across the seams")
+    metrics.update(seam_drops(load_mesh(collision), truth.mesh, scene, partition, _scene_up(truth)))
+
+
 def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
@@ -401,12 +455,14 @@ def evaluate_run(
     log: Callable[[str], None] = lambda _: None,
     scene: Scene | None = None,
     lpips_weights: str | Path | None = None,
+    seams: str | Path | None = None,
 ) -> RunEvaluation:
     """Evaluate a finished run (see the module docstring); ``gt`` is a virtual-rig ground-truth
     folder or its parent, or a mesh file in the scene's frame (``None``: no geometric or physics
     metrics); ``scene``: the run's scene when it is already loaded (its files are then not read
     again); ``lpips_weights``: the LPIPS weights file (``None``: where
-    :func:`~eval.lpips_weights.load_lpips` looks)."""
+    :func:`~eval.lpips_weights.load_lpips` looks); ``seams``: a block run's ``partition.json`` whose
+    seams are checked (:mod:`eval.seams`; ``None``: the run's own, when it was trained in blocks)."""
     run_dir = Path(run_dir)
     if threshold_m <= 0:
         raise InputError(f"threshold must be positive, got {threshold_m}", field="threshold")
@@ -419,8 +475,9 @@ def evaluate_run(
     metrics: dict = dict.fromkeys(CONTRACT_FIELDS)
     metrics["threshold_m"] = float(threshold_m)
     reasons: dict[str, str] = {}
-    # bad weights or ground truth fail here, before minutes of rendering
+    # bad weights, seams or ground truth fail here, before minutes of rendering
     lpips_network = load_lpips(lpips_weights)
+    partition = _read_seams(run_dir, seams)
     truth = None
     if gt is not None:
         from eval.ground_truth import load_ground_truth
@@ -472,6 +529,7 @@ def evaluate_run(
     elif truth is not None:
         reasons["physics"] = "skipped (--no-physics)"
 
+    _seams(run_dir, partition, model, scene, reference, truth, physics, metrics, reasons, log)
     metrics["n_triangles"] = summary.get("n_triangles", model.n_triangles)
     metrics["train_seconds"] = summary.get("train_seconds")
     if metrics["train_seconds"] is None:

@@ -24,6 +24,7 @@ def evaluate_run_command(
     device: str,
     lpips_weights: Path | None,
     json_out: bool,
+    seams: Path | None = None,
 ) -> None:
     from eval.run_eval import evaluate_run, write_eval_json
     from eval.run_inputs import resolve_run_inputs
@@ -35,8 +36,9 @@ def evaluate_run_command(
 
     with native_output_to_stderr():
         evaluation = evaluate_run(
-            inputs.run_dir, inputs.gt, threshold, samples, device, physics, log, lpips_weights=lpips_weights
-        )
+            inputs.run_dir, inputs.gt, threshold, samples, device, physics, log, lpips_weights=lpips_weights,
+            seams=seams,
+        )  # fmt: skip
         eval_path = write_eval_json(evaluation)
         report_path = None
         if report:
@@ -67,6 +69,17 @@ def evaluate_run_command(
         f"{_text(m['height_error_mean_m'], ' cm', 100, 2)}",
         f"{m['n_triangles']} triangles, trained in {_text(m['train_seconds'], ' s', digits=0)}",
     ]
+    if m["seam_blocks"] is not None:
+        at_seams, elsewhere = (
+            _text(m["seam_hole_fraction"], " %", 100, 2),
+            _text(m["off_seam_hole_fraction"], " %", 100, 2),
+        )
+        lines.append(
+            f"seams of {m['seam_blocks']} blocks: leaned-view holes {at_seams} at them, {elsewhere} "
+            f"elsewhere in the same {m['seam_views']} views; physics fall-through "
+            f"{_text(m['seam_fall_through_rate'], ' %', 100, 1)} of {m['seam_physics_probes']} probes "
+            "across them"
+        )
     for line in lines:
         console.print(line, highlight=False)
     by_reason: dict[str, list[str]] = {}

@@ -286,8 +286,9 @@ def train_run(
     """The train stage (in blocks on Ray with ``o.blocks``): continues an interrupted run made with
     the same options on the same scene; a run made otherwise is set aside as ``train.previous-N``
     and training starts afresh."""
-    from splat.blocks.block_run import PARTITION_FILE, train_in_blocks
+    from splat.blocks.block_run import train_in_blocks
     from splat.blocks.options import BlockOptions
+    from splat.blocks.partition import PARTITION_FILE
     from splat.config import load_config
     from splat.run_dir import checkpoint_path, config_path
     from splat.trainer import train

@@ -29,7 +29,7 @@ from splat import run_dir as layout
 from splat.blocks.block_scene import block_config, block_dir, write_block_scene
 from splat.blocks.merge import core_triangles, merge_models
 from splat.blocks.options import BlockOptions
-from splat.blocks.partition import Block, Partition, partition_scene
+from splat.blocks.partition import PARTITION_FILE, Block, Partition, partition_scene
 from splat.blocks.ray_tasks import BlockJob, cluster_cpus, connect, import_ray, run_jobs
 from splat.config import TrainConfig
 from splat.exposure import ViewExposures
@@ -37,7 +37,6 @@ from splat.held_out_views import evaluate_views, load_held_out_views, write_rend
 from splat.model import load_model, save_model
 from splat.trainer import TrainResult, export_run, train
 
-PARTITION_FILE = "partition.json"
 RESULT_FILE = "result.json"
 
 
@@ -104,11 +103,7 @@ def _start_run_dir(
     """Write the run's config, run info and partition; on ``resume`` check they are the run's."""
     run_dir.mkdir(parents=True, exist_ok=True)
     partition_file = run_dir / PARTITION_FILE
-    described = {
-        "axes": partition.frame.axes.tolist(),
-        "up": partition.frame.up.tolist(),
-        "blocks": [b.describe() for b in partition.blocks],
-    }
+    described = partition.to_json()
     if resume:
         if not partition_file.is_file():
             raise InputError("no block run to resume (start without --resume)", path=partition_file)

@@ -18,6 +18,7 @@ block; blocks that no training camera sees are left out.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -29,6 +30,8 @@ from slam_bridge.scene import Keyframe, Scene
 #: fraction of its LiDAR returns fall in the core (a long corridor or street is seen from far away:
 #: a small fraction would give every block most of the keyframes).
 SEES_CORE_FRACTION = 0.25
+#: The file in a block run's folder that holds its partition (:meth:`Partition.to_json`).
+PARTITION_FILE = "partition.json"
 #: Bisection stops at this depth (2^12 blocks) even if a budget is still exceeded.
 MAX_DEPTH = 12
 
@@ -99,6 +102,47 @@ class Partition:
 
     frame: GroundFrame
     blocks: list[Block]
+
+    def to_json(self) -> dict:
+        """What ``RUN_DIR/partition.json`` holds: the frame and every block's :meth:`Block.describe`."""
+        return {
+            "axes": self.frame.axes.tolist(),
+            "up": self.frame.up.tolist(),
+            "blocks": [b.describe() for b in self.blocks],
+        }
+
+    def seam_distance(self, xy: np.ndarray) -> np.ndarray:
+        """``(N,)`` distance (m) of ground-plane points ``(N, 2)`` to the nearest seam: a finite edge
+        of the core they lie in (inf outside every core, or in a core without finite edges)."""
+        distance = np.full(len(xy), np.inf)
+        for block in self.blocks:
+            inside = block.in_core(xy)
+            gaps = np.concatenate([xy[inside] - block.core[0], block.core[1] - xy[inside]], axis=1)
+            distance[inside] = gaps.min(axis=1)  # an open side is an infinite gap
+        return distance
+
+
+def read_partition(path: Path) -> Partition:
+    """The partition in ``path`` (a ``partition.json`` written by ``lts train --blocks``); an error
+    naming the file when it is not one."""
+    from rig.data_file import load_data_file
+
+    data = load_data_file(path, "JSON", "block partition")
+    try:
+        axes = np.asarray(data["axes"], dtype=np.float64).reshape(2, 3)
+        frame = GroundFrame(axes, np.asarray(data["up"], dtype=np.float64).reshape(3))
+        blocks = []
+        for entry in data["blocks"]:
+            low = [-np.inf if v is None else v for v in entry["core"][0]]
+            high = [np.inf if v is None else v for v in entry["core"][1]]
+            core = np.array([low, high], dtype=np.float64).reshape(2, 2)
+            counts = int(entry["train_keyframes"]), int(entry["faces"])
+            blocks.append(Block(int(entry["index"]), core, float(entry["margin_m"]), (), *counts))
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise InputError(
+            f"expected axes, up and blocks with cores ({exc})", path=path, field="blocks"
+        ) from None
+    return Partition(frame, blocks)
 
 
 def ground_frame(keyframes: list[Keyframe]) -> GroundFrame:

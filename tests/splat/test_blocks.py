@@ -17,12 +17,20 @@ import torch
 import trimesh
 from training_scene import write_training_scene
 
+from rig.errors import InputError
 from rig.transforms import make_transform
 from slam_bridge.prepare_config import PrepareConfig
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat.blocks.block_scene import block_config, write_block_scene
 from splat.blocks.merge import core_triangles, merge_models
-from splat.blocks.partition import Block, GroundFrame, ground_frame, partition_scene
+from splat.blocks.partition import (
+    Block,
+    GroundFrame,
+    Partition,
+    ground_frame,
+    partition_scene,
+    read_partition,
+)
 from splat.config import make_config
 from splat.model import TriangleModel
 from splat.raster.scenes import pinhole
@@ -229,3 +237,22 @@ def test_a_worker_killed_mid_training_is_retried_from_its_checkpoint(scene_dir, 
     resumed = json.loads(out.strip().splitlines()[-1].replace("None", "null"))
     assert resumed[0] is not None and resumed[0] > 0  # block 0 started again from its checkpoint
     assert (run / "model.pt").is_file()
+
+
+def test_seam_distance_and_the_partition_file_round_trip(tmp_path):
+    frame = GroundFrame(np.array([[1.0, 0, 0], [0, 1.0, 0]]), np.array([0, 0, 1.0]))
+    blocks = [
+        Block(0, np.array([[-np.inf, -np.inf], [0.0, np.inf]]), 1.0, ("a",), 3, 10),
+        Block(1, np.array([[0.0, -np.inf], [5.0, np.inf]]), 1.0, ("b",), 4, 20),
+    ]
+    partition = Partition(frame, blocks)
+    xy = np.array([[-3.0, 7.0], [0.4, -2.0], [4.0, 0.0], [9.0, 0.0]])
+    assert partition.seam_distance(xy).tolist() == [3.0, 0.4, 1.0, np.inf]  # beyond every core: none
+    path = tmp_path / "partition.json"
+    path.write_text(json.dumps(partition.to_json()))
+    again = read_partition(path)
+    assert np.array_equal(again.frame.axes, frame.axes)
+    assert [b.core.tolist() for b in again.blocks] == [b.core.tolist() for b in blocks]
+    path.write_text('{"axes": [[1, 0, 0]], "up": [0, 0, 1], "blocks": []}')
+    with pytest.raises(InputError, match=r"partition\.json"):
+        read_partition(path)
