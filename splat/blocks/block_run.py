@@ -89,11 +89,12 @@ def train_in_blocks(
         jobs = [BlockJob(j.index, j.scene_dir, j.run_dir, j.config, threads) for j in jobs]
         log(f"training {len(jobs)} blocks on Ray ({cluster_cpus(ray)} CPUs, {threads} threads a block)")
         gpus = 1.0 if config.device.startswith("cuda") else 0.0
-        with _BlockProgress(jobs, progress) as display:
-            results = run_jobs(ray, jobs, gpus_per_job=gpus, on_progress=display.update)
-        for index, result in results.items():
+
+        def keep(index: int, result: dict) -> None:  # a rerun with --resume starts from the finished ones
             write_atomic(block_dir(run_dir, blocks[index]) / RESULT_FILE, json.dumps(result, indent=1))
-        done |= results
+
+        with _BlockProgress(jobs, progress) as display:
+            done |= run_jobs(ray, jobs, gpus_per_job=gpus, on_progress=display.update, on_result=keep)
     return _merge(scene, run_dir, config, partition, done, time.perf_counter() - started)
 
 

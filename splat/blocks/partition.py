@@ -17,7 +17,7 @@ block; blocks that no training camera sees are left out.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +68,7 @@ class Block:
             them; the face budget bounds those in the core, which halving the core reduces).
     """
 
-    index: int
+    index: int  # the blocks of a partition are numbered 0, 1, ... in this order
     core: np.ndarray
     margin_m: float
     keyframes: tuple[str, ...]
@@ -227,8 +227,9 @@ def partition_scene(
             leaves.append(core)
         else:
             pending += [(halves[1], depth + 1), (halves[0], depth + 1)]
-    blocks = [make(core, i) for i, core in enumerate(sorted(leaves, key=lambda c: _order_key(c, centres)))]
-    return Partition(frame, [b for b in blocks if b.n_train > 0] or blocks[:1])
+    blocks = [make(core, 0) for core in sorted(leaves, key=lambda c: _order_key(c, centres))]
+    trained = [b for b in blocks if b.n_train > 0] or blocks[:1]
+    return Partition(frame, [replace(b, index=i) for i, b in enumerate(trained)])
 
 
 def _world_lidar(scene: Scene, keyframe: Keyframe) -> np.ndarray:

@@ -135,11 +135,13 @@ def run_jobs(
     *,
     gpus_per_job: float,
     on_progress: Callable[[dict[int, tuple[int, int]]], None],
+    on_result: Callable[[int, dict], None],
 ) -> dict[int, dict]:
     """Run ``jobs`` as Ray tasks (each declares its threads as CPUs, and ``gpus_per_job`` GPUs) and
     return each one's result by block index; ``on_progress`` gets the board's reading about twice a
-    second. A task whose worker dies is retried (:data:`BLOCK_RETRIES`); an error in the training
-    itself (bad input, divergence) is not, and is raised as it was raised in the worker."""
+    second, ``on_result`` each block's result as it comes. A task whose worker dies is retried
+    (:data:`BLOCK_RETRIES`); an error in the training itself (bad input, divergence) is not, and is
+    raised as it was raised in the worker."""
     board = ray.remote(num_cpus=0)(ProgressBoard).remote()
     # max_calls=1: each block gets a fresh worker process, so its peak memory is its own.
     task = ray.remote(max_retries=BLOCK_RETRIES, retry_exceptions=False, max_calls=1)(train_block)
@@ -169,5 +171,6 @@ def run_jobs(
                     "with --resume",
                     path=run_dirs[index],
                 ) from None
+            on_result(index, results[index])
     on_progress(ray.get(board.read.remote()))
     return results

@@ -94,6 +94,7 @@ def test_blocks_tile_the_plane_and_hold_their_budgets(tmp_path):
     parts = partition_scene(scene, faces, keyframe_budget=12, face_budget=10_000, margin_m=1.0)
     blocks = parts.blocks
     assert len(blocks) >= 4 and all(b.n_train <= 12 for b in blocks)
+    assert [b.index for b in blocks] == list(range(len(blocks)))
     xy = parts.frame.project(faces)
     owners = np.stack([b.in_core(xy) for b in blocks])
     assert (owners.sum(axis=0) == 1).all()  # every point of the plane lies in exactly one core
