@@ -129,8 +129,9 @@ def neighbour_gains(
     the one before that both see (``images``: ``(H, W, 3)`` RGB in [0, 1] in time order;
     ``lidar_points``: each image's camera-frame returns ``(M, 3)``; ``poses_world_cam`` ``(K, 4, 4)``):
     the median over those points of ``log(grey_after / grey_before)``, 0 where fewer than
-    :data:`MIN_SHARED_POINTS` are shared. A surface keeps its colour from one image to the next, so
-    what differs is the camera's gain."""
+    :data:`MIN_SHARED_POINTS` are shared or fewer than :data:`MIN_AGREEING_FRACTION` of them agree
+    with it. A surface keeps its colour from one image to the next, so what differs is the
+    camera's gain."""
     grey = [image.mean(axis=2) for image in images]
     ratios = np.zeros(max(len(images) - 1, 0))
     for i in range(len(ratios)):
@@ -139,12 +140,22 @@ def neighbour_gains(
         usable = np.isfinite(before) & np.isfinite(after) & (before > 0.04) & (after > 0.04)
         usable &= (before < 0.96) & (after < 0.96)
         if usable.sum() >= MIN_SHARED_POINTS:
-            ratios[i] = float(np.median(np.log(after[usable] / before[usable])))
+            logs = np.log(after[usable] / before[usable])
+            median = float(np.median(logs))
+            # A gain moves every point alike; points the next image sees something else at (an
+            # occluder, a turn) scatter, and can pull the median of a few pairs far off.
+            if np.mean(np.abs(logs - median) <= GAIN_AGREEMENT) >= MIN_AGREEING_FRACTION:
+                ratios[i] = median
     return ratios
 
 
 #: Fewer shared LiDAR points than this say nothing about two images' gains.
 MIN_SHARED_POINTS = 50
+#: A pair's gain counts when at least this fraction of its shared points agree with the median
+#: log ratio to within :data:`GAIN_AGREEMENT` (without it, on a 2-minute corridor with pillars the
+#: few pairs taken across a bend chained to a 64 % spread in images of one gain).
+MIN_AGREEING_FRACTION = 0.5
+GAIN_AGREEMENT = 0.05
 #: With ``exposure: auto``, the maps are learnt when the images' gains, chained from one image to
 #: the next, span more than this (log ratio: 5 %).
 GAIN_SPREAD_LIMIT = math.log(1.05)

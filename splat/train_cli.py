@@ -68,8 +68,9 @@ def train_command(
     ray_address: str | None = typer.Option(
         None,
         "--ray-address",
-        help="A Ray cluster to run the blocks on (ray start --head prints it); without it a local Ray "
-        "instance uses this machine's CPUs. The scene and --out must be on a file system every node sees.",
+        help="A Ray cluster to run the blocks on: HOST:PORT (ray start --head prints it) or auto (the one "
+        "ray start runs on this machine); without it a new local Ray instance uses this machine's CPUs. "
+        "The scene and --out must be on a file system every node sees.",
     ),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object (the run summary) on stdout."),

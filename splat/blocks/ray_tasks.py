@@ -53,7 +53,7 @@ def import_ray():
 
 def connect(address: str | None, cpus: int | None):
     """Start a local Ray instance with ``cpus`` CPUs (None: all of this machine's) or join the
-    cluster at ``address``; returns the ``ray`` module."""
+    cluster at ``address`` (``auto``: the one ``ray start`` runs here); returns the ``ray`` module."""
     ray = import_ray()
     if not ray.is_initialized():
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": "ERROR"}
@@ -61,7 +61,8 @@ def connect(address: str | None, cpus: int | None):
             if address:
                 ray.init(address=address, **options)
             else:
-                ray.init(num_cpus=cpus or os.cpu_count(), **options)
+                # "local": a new instance even where a cluster runs (ray start), which --ray-address names
+                ray.init(address="local", num_cpus=cpus or os.cpu_count(), **options)
         except (ConnectionError, RuntimeError, ValueError) as exc:
             raise InputError(f"cannot reach Ray ({exc})", field="ray-address") from None
     return ray

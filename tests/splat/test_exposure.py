@@ -145,8 +145,17 @@ def test_the_gains_between_neighbouring_images_are_measured_on_shared_lidar_poin
 
     measured = ratios(exposed_scene)
     assert np.allclose(measured, np.diff(np.log(GAINS)), atol=0.03), measured
-    plain = ratios(write_training_scene(tmp_path / "plain"))
+    plain_root = write_training_scene(tmp_path / "plain")
+    plain = ratios(plain_root)
     assert gain_spread(plain) < GAIN_SPREAD_LIMIT < gain_spread(measured)
+    # Something in front of the wall in one image only (an occluder, a passer-by): the points
+    # behind it scatter instead of moving by one gain, and that pair says nothing.
+    image_path = plain_root / "images" / "000002.png"
+    image = cv2.imread(str(image_path))
+    image[:, : image.shape[1] * 2 // 3] = (20, 200, 90)
+    cv2.imwrite(str(image_path), image)
+    occluded = ratios(plain_root)
+    assert occluded[1] == 0.0 and occluded[2] == 0.0 and gain_spread(occluded) < GAIN_SPREAD_LIMIT
 
 
 def test_auto_learns_no_maps_where_the_images_share_one_exposure(tmp_path):
