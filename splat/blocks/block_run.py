@@ -61,9 +61,11 @@ def train_in_blocks(
         scene, np.asarray(mesh.triangles_center), keyframe_budget=options.keyframe_budget,
         face_budget=options.face_budget, margin_m=options.margin_m,
     )  # fmt: skip
-    _start_run_dir(scene, run_dir, config, partition, resume)
     blocks = partition.blocks
-    if len(blocks) == 1:
+    # Ray answers (or the error says why) before anything is written.
+    ray = connect(options.ray_address, options.cpus) if len(blocks) > 1 else None
+    _start_run_dir(scene, run_dir, config, partition, resume)
+    if ray is None:
         log(f"the scene is one block ({blocks[0].n_train} training keyframes, {blocks[0].n_faces} warm-start "
             "faces, within the budgets): trained in this process")  # fmt: skip
         resume = resume and layout.checkpoint_path(run_dir).is_file()
@@ -83,7 +85,6 @@ def train_in_blocks(
         cfg = block_config(config, block, n_train)
         jobs.append(BlockJob(block.index, str(block_scene), str(folder / "run"), cfg.model_dump(), 1))
     if jobs:
-        ray = connect(options.ray_address, options.cpus)
         at_once = min(len(jobs), cluster_cpus(ray))
         threads = options.threads or max(1, cluster_cpus(ray) // at_once)
         jobs = [BlockJob(j.index, j.scene_dir, j.run_dir, j.config, threads) for j in jobs]

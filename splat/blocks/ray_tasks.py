@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import resource
+import socket
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -55,6 +56,8 @@ def connect(address: str | None, cpus: int | None):
     """Start a local Ray instance with ``cpus`` CPUs (None: all of this machine's) or join the
     cluster at ``address`` (``auto``: the one ``ray start`` runs here); returns the ``ray`` module."""
     ray = import_ray()
+    if address and address != "auto":
+        _check_reachable(address)
     if not ray.is_initialized():
         options = {"include_dashboard": False, "log_to_driver": False, "logging_level": "ERROR"}
         try:
@@ -66,6 +69,25 @@ def connect(address: str | None, cpus: int | None):
         except (ConnectionError, RuntimeError, ValueError) as exc:
             raise InputError(f"cannot reach Ray ({exc})", field="ray-address") from None
     return ray
+
+
+#: Seconds to wait for a cluster's head to answer before saying it cannot be reached (Ray itself
+#: keeps retrying for minutes).
+CONNECT_TIMEOUT_S = 10.0
+
+
+def _check_reachable(address: str) -> None:
+    """A one-line error naming ``address`` (``HOST:PORT``, optionally ``ray://``) when nothing
+    listens there."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    try:
+        with socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S):
+            return
+    except ValueError:
+        problem = "expected HOST:PORT, e.g. 10.0.0.5:6379 as ray start --head prints it"
+    except OSError as exc:
+        problem = f"{exc.strerror or exc}; is ray start --head running there?"
+    raise InputError(f"cannot reach a Ray cluster at {address} ({problem})", field="ray-address")
 
 
 def cluster_cpus(ray) -> int:
