@@ -31,15 +31,15 @@ def decouple_and_scale(vertices: np.ndarray, faces: np.ndarray, scale: float = 2
 
 #: open3d's quadric decimation slows down far more than linearly on some meshes of millions of
 #: faces (the 4 M-face ground truth of ``lts sim --preset floor``: over 25 min; 3.5 M faces of it:
-#: 70 s). Above this many faces, vertex clustering (linear) first brings the mesh down to about
-#: :data:`CLUSTERED_FACES` (that floor: 8 cm cells, 23 s in all).
-CLUSTER_ABOVE_FACES = 2_000_000
-CLUSTERED_FACES = 600_000
+#: 70 s; a 1.8 M-face block of it: over 2 min). A mesh of more than this many times the faces
+#: wanted is first brought down by vertex clustering (linear) to :data:`CLUSTER_TO` times them.
+CLUSTER_ABOVE = 20
+CLUSTER_TO = 10
 
 
 def simplify(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh:
     """The mesh with at most ``max_faces`` faces (open3d quadric decimation, after vertex clustering
-    above :data:`CLUSTER_ABOVE_FACES`; unchanged if smaller)."""
+    above :data:`CLUSTER_ABOVE` times ``max_faces``; unchanged if smaller)."""
     if len(mesh.faces) <= max_faces:
         return mesh
     import open3d as o3d
@@ -48,9 +48,9 @@ def simplify(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh:
         o3d.utility.Vector3dVector(np.asarray(mesh.vertices, dtype=np.float64)),
         o3d.utility.Vector3iVector(np.asarray(mesh.faces, dtype=np.int32)),
     )
-    if len(mesh.faces) > CLUSTER_ABOVE_FACES:
+    if len(mesh.faces) > CLUSTER_ABOVE * max_faces:
         # A surface of area A in cells of side v has about 2 A / v^2 triangles.
-        voxel = float(np.sqrt(2.0 * mesh.area / CLUSTERED_FACES))
+        voxel = float(np.sqrt(2.0 * mesh.area / (CLUSTER_TO * max_faces)))
         legacy = legacy.simplify_vertex_clustering(voxel, o3d.geometry.SimplificationContraction.Quadric)
         # Clustering leaves repeated and non-manifold faces, which stop quadric decimation early.
         legacy.remove_degenerate_triangles()
