@@ -151,14 +151,20 @@ def _floor_centreline() -> np.ndarray:
 
 
 def _floor_path() -> tuple[tuple[float, float], ...]:
-    """The robot's waypoints along the ``floor`` corridor, its corners cut by 1 m (as ``corridor``'s)."""
+    """The robot's waypoints along the ``floor`` corridor: its corners cut by 1 m (as ``corridor``'s)
+    and a waypoint every 2.5 m or less between them, so that the spline through them stays on the
+    centreline (through the corners alone it swings metres off the 30 m legs, through the walls)."""
     c = _floor_centreline()
-    points = [tuple(c[0] + (0.5, 0.0))]
+    corners = [c[0] + (0.5, 0.0)]
     for before, corner, after in zip(c[:-2], c[1:-1], c[2:], strict=True):
         into = (corner - before) / np.linalg.norm(corner - before)
         out = (after - corner) / np.linalg.norm(after - corner)
-        points += [tuple(corner - into), tuple(corner + out)]
-    points.append(tuple(c[-1] - (c[-1] - c[-2]) / np.linalg.norm(c[-1] - c[-2]) * 0.5))
+        corners += [corner - into, corner + out]
+    corners.append(c[-1] - (c[-1] - c[-2]) / np.linalg.norm(c[-1] - c[-2]) * 0.5)
+    points = [corners[0]]
+    for a, b in itertools.pairwise(corners):
+        steps = max(1, int(np.ceil(np.linalg.norm(b - a) / 2.5)))
+        points += [a + (b - a) * k / steps for k in range(1, steps + 1)]
     return tuple((float(x), float(y)) for x, y in points)
 
 
