@@ -153,6 +153,8 @@ def check_options(o: ReconstructOptions) -> Recording:
     """Refuse a missing or unreadable recording, a bad topic map, calibration or training option
     before any stage starts; the recording, opened."""
     train_config(o)  # a bad method, preset or --exposure stops here, not after mapping
+    if o.ray_address is not None and not o.blocks:
+        raise InputError("only with --blocks, which was not given: --ray-address", field="blocks")
     if o.blocks:
         from splat.blocks.ray_tasks import import_ray
 

@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from rig.cli_support import console, emit_json
+from rig.errors import InputError
 from splat.blocks.options import BlockOptions
 from splat.config import METHODS, PRESETS, TrainConfig
 
@@ -56,14 +57,27 @@ def train_command(
         help="Train long trajectories as spatial blocks on Ray and merge them into one run (needs the "
         "blocks extra). A scene within one block's budgets is one block.",
     ),
-    block_keyframes: int = typer.Option(
-        BlockOptions.keyframe_budget, "--block-keyframes", min=1, help="Most training keyframes per block."
+    block_keyframes: int | None = typer.Option(
+        None,
+        "--block-keyframes",
+        min=1,
+        help=f"With --blocks: most training keyframes per block. [default: {BlockOptions.keyframe_budget}]",
+        show_default=False,
     ),
-    block_faces: int = typer.Option(
-        BlockOptions.face_budget, "--block-faces", min=1, help="Most warm-start mesh faces per block core."
+    block_faces: int | None = typer.Option(
+        None,
+        "--block-faces",
+        min=1,
+        help="With --blocks: most warm-start mesh faces in a block's core. "
+        f"[default: {BlockOptions.face_budget}]",
+        show_default=False,
     ),
-    block_margin: float = typer.Option(
-        BlockOptions.margin_m, "--block-margin", min=0.0, help="Overlap margin around each block (m)."
+    block_margin: float | None = typer.Option(
+        None,
+        "--block-margin",
+        min=0.0,
+        help=f"With --blocks: overlap margin around each block (m). [default: {BlockOptions.margin_m:g}]",
+        show_default=False,
     ),
     ray_address: str | None = typer.Option(
         None,
@@ -84,6 +98,11 @@ def train_command(
     from splat.config import config_from_options
     from splat.trainer import TrainingDivergedError, TrainingInterruptedError, train
 
+    block_settings = {"--block-keyframes": block_keyframes, "--block-faces": block_faces,
+                      "--block-margin": block_margin, "--ray-address": ray_address}  # fmt: skip
+    if not blocks and (given := [name for name, value in block_settings.items() if value is not None]):
+        raise InputError(f"only with --blocks, which was not given: {', '.join(given)}", field="blocks")
+
     config = config_from_options(
         method, preset, seed=seed, device=device, init_noise_m=init_noise, iterations=iterations,
         max_triangles=max_triangles, coarse_until=half_resolution, exposure=exposure,
@@ -92,7 +111,13 @@ def train_command(
         if blocks:
             from splat.blocks.block_run import train_in_blocks
 
-            options = BlockOptions(block_keyframes, block_faces, block_margin, ray_address)
+            defaults = BlockOptions()
+            options = BlockOptions(
+                block_keyframes or defaults.keyframe_budget,
+                block_faces or defaults.face_budget,
+                defaults.margin_m if block_margin is None else block_margin,
+                ray_address,
+            )
             result = train_in_blocks(scene, out, config, options, resume=resume, progress=progress)
         else:
             result = train(scene, out, config, resume=resume, progress=progress)

@@ -186,6 +186,18 @@ def test_blocks_without_ray_installed_is_one_line_naming_the_extra(scene_dir, tm
     assert not (tmp_path / "run").exists()
 
 
+def test_block_options_without_blocks_are_refused(scene_dir, tmp_path, lts_cli):
+    code, _, err = lts_cli(
+        "train", scene_dir, "--out", tmp_path / "run", "--block-margin", 1, "--ray-address", "auto"
+    )
+    assert code == 2 and "only with --blocks" in err and "--block-margin, --ray-address" in err
+    assert not (tmp_path / "run").exists()
+    code, _, err = lts_cli(
+        "reconstruct", tmp_path / "none.mcap", "--out", tmp_path / "r", "--ray-address", "auto"
+    )
+    assert code == 2 and "only with --blocks" in err
+
+
 @pytest.mark.slow
 def test_blocks_on_ray_merge_into_a_run_that_lts_eval_reads(scene_dir, tmp_path):
     run = tmp_path / "run"
