@@ -19,7 +19,7 @@ class BlockOptions:
         threads: CPU threads per block (None: the cluster's CPUs shared by the blocks that run at once).
     """
 
-    keyframe_budget: int = 100
+    keyframe_budget: int = 150
     face_budget: int = 1_000_000
     margin_m: float = 2.0
     ray_address: str | None = None
