@@ -12,6 +12,12 @@ from splat.blocks.options import BlockOptions
 from splat.config import METHODS, PRESETS, TrainConfig
 
 
+def _block_option(flag: str, minimum: float, what: str, default: float):
+    """A ``--block-*`` option: None unless given (it applies only with --blocks), its default shown."""
+    return typer.Option(None, flag, min=minimum, help=f"With --blocks: {what}. [default: {default:g}]",
+                        show_default=False)  # fmt: skip
+
+
 def train_command(
     scene: Path = typer.Argument(..., help="Scene folder written by lts prepare."),
     out: Path = typer.Option(
@@ -57,27 +63,14 @@ def train_command(
         help="Train long trajectories as spatial blocks on Ray and merge them into one run (needs the "
         "blocks extra). A scene within one block's budgets is one block.",
     ),
-    block_keyframes: int | None = typer.Option(
-        None,
-        "--block-keyframes",
-        min=1,
-        help=f"With --blocks: most training keyframes per block. [default: {BlockOptions.keyframe_budget}]",
-        show_default=False,
+    block_keyframes: int | None = _block_option(
+        "--block-keyframes", 1, "most training keyframes per block", BlockOptions.keyframe_budget
     ),
-    block_faces: int | None = typer.Option(
-        None,
-        "--block-faces",
-        min=1,
-        help="With --blocks: most warm-start mesh faces in a block's core. "
-        f"[default: {BlockOptions.face_budget}]",
-        show_default=False,
+    block_faces: int | None = _block_option(
+        "--block-faces", 1, "most warm-start mesh faces in a block's core", BlockOptions.face_budget
     ),
-    block_margin: float | None = typer.Option(
-        None,
-        "--block-margin",
-        min=0.0,
-        help=f"With --blocks: overlap margin around each block (m). [default: {BlockOptions.margin_m:g}]",
-        show_default=False,
+    block_margin: float | None = _block_option(
+        "--block-margin", 0.0, "overlap margin around each block (m)", BlockOptions.margin_m
     ),
     ray_address: str | None = typer.Option(
         None,
