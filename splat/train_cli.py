@@ -14,7 +14,7 @@ from splat.config import METHODS, PRESETS, TrainConfig
 
 def _block_option(flag: str, minimum: float, what: str, default: float):
     """A ``--block-*`` option: None unless given (it applies only with --blocks), its default shown."""
-    return typer.Option(None, flag, min=minimum, help=f"With --blocks: {what}. [default: {default:g}]",
+    return typer.Option(None, flag, min=minimum, help=f"With --blocks: {what} (default {default:g}).",
                         show_default=False)  # fmt: skip
 
 

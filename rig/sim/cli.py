@@ -27,22 +27,25 @@ def sim(
     rate: float = typer.Option(30.0, "--rate", help="Pose rate (Hz) of a trajectory file without times."),
     seed: int = typer.Option(0, "--seed", help="Seed: the same seed gives a bit-identical run."),
     duration: float | None = typer.Option(
-        None, "--duration", help="Seconds of motion (presets). [default: 20, floor: 120]", show_default=False
+        None,
+        "--duration",
+        help="Seconds of motion (presets). \\[default: 20, floor: 120]",
+        show_default=False,
     ),
     quick: bool = typer.Option(False, "--quick", help="Small run for tests: 3 s, 160x120."),
     carrier: str | None = typer.Option(
         None,
         "--carrier",
-        help="wheeled (camera ~0.45 m high), handheld or car (~1.65 m). [default: the preset's; wheeled, "
+        help="wheeled (camera ~0.45 m high), handheld or car (~1.65 m). \\[default: the preset's; wheeled, "
         "street: car]",
         show_default=False,
     ),
     fps: float = typer.Option(30.0, "--fps", help="Camera frame rate (Hz)."),
     width: int | None = typer.Option(
-        None, "--width", help="Image width (px). [default: 320, street: 640]", show_default=False
+        None, "--width", help="Image width (px). \\[default: 320, street: 640]", show_default=False
     ),
     height: int | None = typer.Option(
-        None, "--height", help="Image height (px). [default: 240]", show_default=False
+        None, "--height", help="Image height (px). \\[default: 240]", show_default=False
     ),
     camera: str = typer.Option("pinhole", "--camera", help="Camera model: pinhole or fisheye."),
     image_format: str = typer.Option(
@@ -55,7 +58,7 @@ def sim(
         "--lidar",
         help="LiDAR: mid360 (Livox Mid-360-like, 360° non-repetitive), rosette (Livox Avia-like, 70° field "
         "of view), spinning (Ouster-like, 32 beams ±22.5°), velodyne64 (64 beams -24.8°..+2°, as KITTI's) "
-        "or velodyne32 (32 beams -30°..+10°). [default: mid360, street: velodyne64]",
+        "or velodyne32 (32 beams -30°..+10°). \\[default: mid360, street: velodyne64]",
         show_default=False,
     ),
     lidar_points: int = typer.Option(
@@ -64,7 +67,7 @@ def sim(
     range_noise: float = typer.Option(0.015, "--range-noise", help="LiDAR range noise std (m)."),
     dropout: float = typer.Option(0.02, "--dropout", help="Fraction of LiDAR returns lost."),
     max_range: float | None = typer.Option(
-        None, "--max-range", help="LiDAR maximum range (m). [default: 40, street: 80]", show_default=False
+        None, "--max-range", help="LiDAR maximum range (m). \\[default: 40, street: 80]", show_default=False
     ),
     time_offset: float = typer.Option(
         0.015, "--time-offset", help="Camera-LiDAR time offset (s), see calib.yaml."
