@@ -417,6 +417,9 @@ def _seams(
         )
         return
     metrics["seam_blocks"] = len(partition.blocks)
+    if len(partition.blocks) < 2:
+        reasons.update(dict.fromkeys(SEAM_FIELDS[1:], "the run is one block: it has no seams"))
+        return
     if reference is None:
         reasons["seam_hole_fraction"] = reasons["hole_fraction_leaned"]
     else:

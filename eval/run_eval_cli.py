@@ -69,7 +69,7 @@ def evaluate_run_command(
         f"{_text(m['height_error_mean_m'], ' cm', 100, 2)}",
         f"{m['n_triangles']} triangles, trained in {_text(m['train_seconds'], ' s', digits=0)}",
     ]
-    if m["seam_blocks"] is not None:
+    if m["seam_views"] is not None:
         at_seams, elsewhere = (
             _text(m["seam_hole_fraction"], " %", 100, 2),
             _text(m["off_seam_hole_fraction"], " %", 100, 2),
