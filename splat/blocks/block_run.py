@@ -74,21 +74,22 @@ def train_in_blocks(
     log(f"{len(blocks)} blocks of at most {options.keyframe_budget} training keyframes and "
         f"{options.face_budget} warm-start faces, {options.margin_m:g} m overlap: "
         + ", ".join(f"{b.n_train}" for b in blocks) + " training keyframes")  # fmt: skip
-    jobs, done = [], {}
-    for block in blocks:
-        folder = block_dir(run_dir, block)
-        result_file = folder / RESULT_FILE
-        if result_file.is_file():
-            done[block.index] = json.loads(result_file.read_text())
-            continue
-        block_scene = write_block_scene(scene, block, partition.frame, mesh, folder / "scene")
-        cfg = block_config(config, block, n_train)
-        jobs.append(BlockJob(block.index, str(block_scene), str(folder / "run"), cfg.model_dump(), 1))
-    if jobs:
-        at_once = min(len(jobs), cluster_cpus(ray))
-        threads = options.threads or max(1, cluster_cpus(ray) // at_once)
-        jobs = [BlockJob(j.index, j.scene_dir, j.run_dir, j.config, threads) for j in jobs]
-        log(f"training {len(jobs)} blocks on Ray ({cluster_cpus(ray)} CPUs, {threads} threads a block)")
+    done = {
+        b.index: json.loads(f.read_text())
+        for b in blocks
+        if (f := block_dir(run_dir, b) / RESULT_FILE).is_file()
+    }
+    to_train = [b for b in blocks if b.index not in done]
+    if to_train:
+        cpus = cluster_cpus(ray)
+        threads = options.threads or max(1, cpus // min(len(to_train), cpus))
+        jobs = []
+        for block in to_train:
+            folder = block_dir(run_dir, block)
+            block_scene = write_block_scene(scene, block, partition.frame, mesh, folder / "scene")
+            settings = block_config(config, block, n_train).model_dump()
+            jobs.append(BlockJob(block.index, str(block_scene), str(folder / "run"), settings, threads))
+        log(f"training {len(jobs)} blocks on Ray ({cpus} CPUs, {threads} threads a block)")
         gpus = 1.0 if config.device.startswith("cuda") else 0.0
 
         def keep(index: int, result: dict) -> None:  # a rerun with --resume starts from the finished ones

@@ -203,31 +203,30 @@ def partition_scene(
     faces_xy = frame.project(face_centroids)
     is_train = np.array([k.split == "train" for k in scene.keyframes])
 
-    def make(core: np.ndarray, index: int) -> Block:
-        probe = Block(index, core, margin_m, (), 0, 0)
+    def make(core: np.ndarray) -> Block:
+        probe = Block(0, core, margin_m, (), 0, 0)
         sees = np.array([_sees(probe, xy, c) for xy, c in zip(sights, centres, strict=True)], dtype=bool)
         names = tuple(k.name for k, s in zip(scene.keyframes, sees, strict=True) if s)
-        return Block(index, core, margin_m, names, int((sees & is_train).sum()),
+        return Block(0, core, margin_m, names, int((sees & is_train).sum()),
                      int(probe.in_expanded(faces_xy).sum()))  # fmt: skip
 
-    whole = np.array([[-np.inf, -np.inf], [np.inf, np.inf]])
-    leaves: list[np.ndarray] = []
-    pending = [(whole, 0)]
+    leaves: list[Block] = []
+    pending = [(make(np.array([[-np.inf, -np.inf], [np.inf, np.inf]])), 0)]
     while pending:
-        core, depth = pending.pop()
-        block = make(core, 0)
-        halves = None
+        block, depth = pending.pop()
+        cores = None
         if depth < MAX_DEPTH and block.n_train > keyframe_budget:  # split where the cameras stand
-            halves = _bisect(core, centres[is_train], margin_m)
+            cores = _bisect(block.core, centres[is_train], margin_m)
         elif depth < MAX_DEPTH and int(block.in_core(faces_xy).sum()) > face_budget:  # where the surface is
-            halves = _bisect(core, faces_xy, margin_m)
-        if halves is not None and max(make(half, 0).n_train for half in halves) >= block.n_train:
+            cores = _bisect(block.core, faces_xy, margin_m)
+        halves = None if cores is None else [make(core) for core in cores]
+        if halves is not None and max(half.n_train for half in halves) >= block.n_train:
             halves = None  # every keyframe sees both halves (one room, one wall): splitting gains nothing
         if halves is None:
-            leaves.append(core)
+            leaves.append(block)
         else:
             pending += [(halves[1], depth + 1), (halves[0], depth + 1)]
-    blocks = [make(core, 0) for core in sorted(leaves, key=lambda c: _order_key(c, centres))]
+    blocks = sorted(leaves, key=lambda b: _order_key(b.core, centres))
     trained = [b for b in blocks if b.n_train > 0] or blocks[:1]
     return Partition(frame, [replace(b, index=i) for i, b in enumerate(trained)])
 
