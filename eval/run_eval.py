@@ -198,16 +198,6 @@ def _as_rgb(image: torch.Tensor) -> np.ndarray:
     return image.detach().clamp(0, 1).cpu().numpy().astype(np.float32)
 
 
-def _render(
-    model: TriangleModel, scene: Scene, T_world_cam: np.ndarray, background_mask: torch.Tensor | None = None
-):
-    """The model's render at ``T_world_cam`` ``(4, 4)``; with a ``background_mask`` ``(H, W)`` (the
-    view's :func:`~splat.background_mask.scored_background_mask`), the background only there."""
-    T_cam_world = torch.as_tensor(np.linalg.inv(T_world_cam), dtype=torch.float32, device=model.device)
-    with torch.no_grad():
-        return model.render(scene.camera, T_cam_world, background_mask=background_mask)
-
-
 def _photometric(
     model: TriangleModel,
     scene: Scene,
@@ -227,7 +217,7 @@ def _photometric(
     for i, keyframe in enumerate(tests):
         lidar = scene.depth(keyframe)
         above = scored_background_mask(torch.as_tensor(lidar, device=model.device))
-        out = _render(model, scene, keyframe.T_world_cam, above)
+        out = model.render_at(scene.camera, keyframe.T_world_cam, above)
         matrix = (color_maps or {}).get(keyframe.name)
         render = _as_rgb(through_color_map(out.rgb, None if matrix is None else torch.as_tensor(matrix)))
         target = scene.image(keyframe).astype(np.float32) / 255.0
@@ -301,7 +291,7 @@ def _holes(
     poses = leaned_poses(np.stack([k.T_world_cam for k in tests]), LEAN_YAW_DEG, LEAN_SHIFT_M)
     leaned = []
     for index, pose in enumerate(poses):
-        out = _render(model, scene, pose)
+        out = model.render_at(scene.camera, pose)
         surface = hit_mask(caster, camera, pose)
         holes = surface & (out.alpha.detach().cpu().numpy() < ALPHA_SURFACE)
         keyframe = tests[index // len(LEAN_LABELS)]

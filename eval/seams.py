@@ -17,7 +17,6 @@ in one process scored at the same places says what the seams cost.
 from __future__ import annotations
 
 import numpy as np
-import torch
 import trimesh
 
 from eval.leaned_views import leaned_poses
@@ -59,9 +58,7 @@ def seam_holes(
         points = pose[:3, 3] + (rays[surface] @ pose[:3, :3].T) * t_hit[surface, None]
         at_seam = np.zeros_like(surface)
         at_seam[surface] = partition.seam_distance(partition.frame.project(points)) <= SEAM_BAND_M
-        T_cam_world = torch.as_tensor(np.linalg.inv(pose), dtype=torch.float32, device=model.device)
-        with torch.no_grad():
-            alpha = model.render(scene.camera, T_cam_world).alpha.cpu().numpy().reshape(-1)
+        alpha = model.render_at(scene.camera, pose).alpha.cpu().numpy().reshape(-1)
         hole = surface & (alpha < ALPHA_SURFACE)
         for row, where in enumerate((at_seam, surface & ~at_seam)):
             counts[row] += [int(where.sum()), int((hole & where).sum())]

@@ -46,9 +46,7 @@ class ViewRenderer:
 
     def render(self, T_world_cam: np.ndarray) -> np.ndarray:
         """``(H, W, 3)`` uint8 render of the model seen from ``T_world_cam`` ``(4, 4)``."""
-        T_cam_world = torch.as_tensor(np.linalg.inv(T_world_cam), dtype=torch.float32)
-        with torch.no_grad():
-            out = self._model.render(self.camera, T_cam_world.to(self._model.device))
+        out = self._model.render_at(self.camera, T_world_cam)
         rgb = out.rgb.clamp(0, 1).mul(255).round().to(torch.uint8)
         return rgb.cpu().numpy()
 

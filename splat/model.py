@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -128,6 +129,15 @@ class TriangleModel:
         added = torch.zeros_like(out.rgb).view(-1, 3)
         added = added.index_add(0, pixels, bg * shows.reshape(-1)[pixels, None])
         return replace(out, rgb=out.rgb + added.view_as(out.rgb))
+
+    @torch.no_grad()
+    def render_at(
+        self, camera: CameraModel, T_world_cam: np.ndarray, background_mask: Tensor | None = None
+    ) -> RenderOutput:
+        """:meth:`render` without gradients from a camera pose ``T_world_cam`` ``(4, 4)`` (camera to
+        world, numpy): for evaluation and viewing."""
+        T_cam_world = torch.as_tensor(np.linalg.inv(T_world_cam), dtype=torch.float32, device=self.device)
+        return self.render(camera, T_cam_world, background_mask=background_mask)
 
     def to_state(self) -> dict:
         """Plain tensors (detached, CPU) and schedule state, for ``torch.save`` (``background`` only
