@@ -17,6 +17,11 @@ from rig.camera import CameraModel
 from rig.mesh_rays import cast_camera_rays, mesh_raycaster, pixel_rays
 from rig.transforms import make_transform
 
+#: A model's pixel with less accumulated opacity than this shows no surface (a hole).
+ALPHA_SURFACE = 0.5
+#: Ground-truth surface beyond this range along a pixel's ray is not scored.
+MAX_RANGE_M = 20.0
+
 
 def leaned_poses(poses_world_cam: np.ndarray, yaw_deg: float = 10.0, shift_m: float = 0.2) -> np.ndarray:
     """Four leaned variants ``(4N, 4, 4)`` of each camera pose ``(N, 4, 4)``: turned by ±``yaw_deg``
@@ -27,7 +32,9 @@ def leaned_poses(poses_world_cam: np.ndarray, yaw_deg: float = 10.0, shift_m: fl
     return np.stack([pose @ offset for pose in np.asarray(poses_world_cam) for offset in offsets])
 
 
-def hit_mask(scene, camera: CameraModel, T_world_cam: np.ndarray, max_range_m: float = 20.0) -> np.ndarray:
+def hit_mask(
+    scene, camera: CameraModel, T_world_cam: np.ndarray, max_range_m: float = MAX_RANGE_M
+) -> np.ndarray:
     """``(H, W)`` bool: which pixels of a camera at ``T_world_cam`` see a surface of ``scene`` (a
     :func:`rig.mesh_rays.mesh_raycaster`) within ``max_range_m`` along the ray."""
     t_hit = cast_camera_rays(scene, T_world_cam, pixel_rays(camera))["t_hit"]
@@ -48,7 +55,7 @@ def mesh_hole_fraction(
     ground_truth: trimesh.Trimesh,
     camera: CameraModel,
     poses_world_cam: np.ndarray,
-    max_range_m: float = 20.0,
+    max_range_m: float = MAX_RANGE_M,
 ) -> HoleResult:
     """Holes of a reconstructed mesh seen from ``poses_world_cam`` ``(V, 4, 4)`` (e.g. leaned ones)."""
     rec, gt = mesh_raycaster(reconstruction), mesh_raycaster(ground_truth)

@@ -36,7 +36,7 @@ import torch
 import trimesh
 
 from eval.geometry import DEFAULT_SAMPLES
-from eval.leaned_views import hit_mask, leaned_poses
+from eval.leaned_views import ALPHA_SURFACE, hit_mask, leaned_poses
 from eval.lidar_agreement import lidar_agreement
 from eval.lpips_net import LpipsAlex
 from eval.lpips_weights import HOW_TO_GET, load_lpips
@@ -122,7 +122,6 @@ LEAN_LABELS = (
     f"shift +{LEAN_SHIFT_M:g} m",
     f"shift −{LEAN_SHIFT_M:g} m",
 )
-ALPHA_SURFACE = 0.5
 #: Up axis of a virtual-rig ground-truth world (its scenes are z-up).
 GT_UP = np.array([0.0, 0.0, 1.0])
 
@@ -347,7 +346,7 @@ def _physics(run_dir: Path, scene: Scene, truth, metrics: dict, reasons: dict) -
     if importlib.util.find_spec("pybullet") is None:
         reasons["physics"] = "pybullet is not installed (pip install '.[physics]')"
         return None
-    collision = next((run_dir / n for n in COLLISION_FILES if (run_dir / n).is_file()), None)
+    collision = _collision_file(run_dir)
     if collision is None:
         reasons["physics"] = f"the run has no collision mesh ({' or '.join(COLLISION_FILES)})"
         return None
@@ -415,12 +414,17 @@ def _seams(
     else:
         log(f"rendering leaned views at the seams of {len(partition.blocks)} blocks")
         metrics.update(seam_holes(model, scene, reference, partition))
-    collision = next((run_dir / n for n in COLLISION_FILES if (run_dir / n).is_file()), None)
+    collision = _collision_file(run_dir)
     if truth is None or not physics or collision is None or importlib.util.find_spec("pybullet") is None:
         reasons["seam_fall_through_rate"] = "needs --gt, --physics, a collision mesh and pybullet"
         return
     log("dropping physics probes across the seams")
     metrics.update(seam_drops(load_mesh(collision), truth.mesh, scene, partition, _scene_up(truth)))
+
+
+def _collision_file(run_dir: Path) -> Path | None:
+    """The run's collision mesh (the first of :data:`COLLISION_FILES` there), or None."""
+    return next((run_dir / n for n in COLLISION_FILES if (run_dir / n).is_file()), None)
 
 
 def _finite(value: float) -> float | None:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from eval.leaned_views import leaned_poses
+from eval.leaned_views import ALPHA_SURFACE, MAX_RANGE_M, leaned_poses
 from eval.physics import compare_drops, drop_probes, footprint_grid
 from rig.mesh_rays import cast_camera_rays, mesh_raycaster, pixel_rays
 from slam_bridge.scene import Scene
@@ -34,10 +34,6 @@ SEAM_VIEW_M = 2.0
 MAX_SEAM_KEYFRAMES = 40
 #: Probe spacing along and across the footprint near seams (m).
 SEAM_PROBE_SPACING_M = 0.1
-#: Pixels with less accumulated opacity are holes (as in :mod:`eval.run_eval`).
-ALPHA_SURFACE = 0.5
-#: Ground-truth surface beyond this range is not scored (as for the leaned views).
-MAX_RANGE_M = 20.0
 
 
 def seam_holes(
