@@ -70,7 +70,7 @@ class ReconstructOptions:
     span: TimeSpan | None = None
     camera: int | None = None
     exposure: str = "auto"
-    blocks: bool = False
+    blocks: str | None = None
     ray_address: str | None = None
 
     @property
@@ -153,10 +153,13 @@ def check_options(o: ReconstructOptions) -> Recording:
     """Refuse a missing or unreadable recording, a bad topic map, calibration or training option
     before any stage starts; the recording, opened."""
     train_config(o)  # a bad method, preset or --exposure stops here, not after mapping
-    if o.ray_address is not None and not o.blocks:
+    if o.ray_address is not None and o.blocks is None:
         raise InputError("only with --blocks, which was not given: --ray-address", field="blocks")
-    if o.blocks:
+    if o.blocks is not None:
+        from splat.blocks.options import parse_block_count
         from splat.blocks.ray_tasks import import_ray
+
+        parse_block_count(o.blocks)
 
         import_ray()  # without the blocks extra, say so before the calibration and the mapper run
     recording = open_recording(o.paths, topic_map=parse_topic_map(o.topics), span=o.span, camera=o.camera)
@@ -264,7 +267,7 @@ def train_key(o: ReconstructOptions) -> list[str]:
     """The training options as ``lts train`` takes them."""
     key = ["--method", o.method, "--preset", o.preset, "--seed", str(o.seed), "--device", o.device]
     key += [] if o.exposure == "auto" else ["--exposure", o.exposure]
-    key += ["--blocks"] if o.blocks else []
+    key += [] if o.blocks is None else ["--blocks", o.blocks]
     return key + (["--iterations", str(o.iterations)] if o.iterations is not None else [])
 
 
@@ -285,7 +288,7 @@ def train_run(
     scene_changed: bool,
     log: Callable[[str], None],
 ) -> None:
-    """The train stage (in blocks on Ray with ``o.blocks``): continues an interrupted run made with
+    """The train stage (in blocks on Ray with ``o.blocks``, auto or N): continues an interrupted run made with
     the same options on the same scene; a run made otherwise is set aside as ``train.previous-N``
     and training starts afresh."""
     from splat.blocks.block_run import train_in_blocks
@@ -298,7 +301,7 @@ def train_run(
     resume = False
     in_blocks = (run_dir / PARTITION_FILE).is_file()
     if config_path(run_dir).is_file():
-        changed = in_blocks != o.blocks or load_config(config_path(run_dir)) != config
+        changed = in_blocks != (o.blocks is not None) or load_config(config_path(run_dir)) != config
         if scene_changed or changed:
             n = 1
             while (run_dir.parent / f"{run_dir.name}.previous-{n}").exists():
@@ -308,8 +311,9 @@ def train_run(
         elif checkpoint_path(run_dir).is_file() or in_blocks:
             log("[train] an earlier attempt stopped part-way: continuing from its checkpoint")
             resume = True
-    if o.blocks:
-        train_in_blocks(scene.root, run_dir, config, BlockOptions(ray_address=o.ray_address), resume=resume)
+    if o.blocks is not None:
+        options = BlockOptions(count=o.blocks, ray_address=o.ray_address)
+        train_in_blocks(scene.root, run_dir, config, options, resume=resume)
     else:
         train(scene, run_dir, config, resume=resume)
 

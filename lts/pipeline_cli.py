@@ -108,10 +108,12 @@ def reconstruct_command(
         "--exposure",
         help="auto, on or off: a colour matrix per training image (see lts train --help).",
     ),
-    blocks: bool = typer.Option(
-        False,
+    blocks: str | None = typer.Option(
+        None,
         "--blocks",
-        help="Train in spatial blocks on Ray and merge them (long trajectories; see lts train --help).",
+        metavar="auto|N",
+        help="Train in spatial blocks on Ray and merge them (long trajectories): auto sizes them by "
+        "budgets, N makes N (see lts train --help).",
     ),
     ray_address: str | None = typer.Option(
         None, "--ray-address", help="A Ray cluster for --blocks (default: a local Ray instance)."

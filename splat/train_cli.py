@@ -8,7 +8,7 @@ import typer
 
 from rig.cli_support import console, emit_json
 from rig.errors import InputError
-from splat.blocks.options import BlockOptions
+from splat.blocks.options import BlockOptions, parse_block_count
 from splat.config import METHODS, PRESETS, TrainConfig
 
 
@@ -57,11 +57,13 @@ def train_command(
     resume: bool = typer.Option(
         False, "--resume", help="Continue the run in --out from its last checkpoint."
     ),
-    blocks: bool = typer.Option(
-        False,
+    blocks: str | None = typer.Option(
+        None,
         "--blocks",
+        metavar="auto|N",
         help="Train long trajectories as spatial blocks on Ray and merge them into one run (needs the "
-        "blocks extra). A scene within one block's budgets is one block.",
+        "blocks extra): auto sizes the blocks by --block-keyframes and --block-faces (a scene within "
+        "them is one block); N makes N blocks.",
     ),
     block_keyframes: int | None = _block_option(
         "--block-keyframes", 1, "most training keyframes per block", BlockOptions.keyframe_budget
@@ -93,19 +95,21 @@ def train_command(
 
     block_settings = {"--block-keyframes": block_keyframes, "--block-faces": block_faces,
                       "--block-margin": block_margin, "--ray-address": ray_address}  # fmt: skip
-    if not blocks and (given := [name for name, value in block_settings.items() if value is not None]):
+    if blocks is None and (given := [name for name, value in block_settings.items() if value is not None]):
         raise InputError(f"only with --blocks, which was not given: {', '.join(given)}", field="blocks")
+    count = None if blocks is None else parse_block_count(blocks)
 
     config = config_from_options(
         method, preset, seed=seed, device=device, init_noise_m=init_noise, iterations=iterations,
         max_triangles=max_triangles, coarse_until=half_resolution, exposure=exposure,
     )  # fmt: skip
     try:
-        if blocks:
+        if count is not None:
             from splat.blocks.block_run import train_in_blocks
 
             defaults = BlockOptions()
             options = BlockOptions(
+                count,
                 block_keyframes or defaults.keyframe_budget,
                 block_faces or defaults.face_budget,
                 defaults.margin_m if block_margin is None else block_margin,

@@ -60,6 +60,7 @@ def train_in_blocks(
     partition = partition_scene(
         scene, np.asarray(mesh.triangles_center), keyframe_budget=options.keyframe_budget,
         face_budget=options.face_budget, margin_m=options.margin_m,
+        count=None if options.count == "auto" else int(options.count),
     )  # fmt: skip
     blocks = partition.blocks
     # Ray answers (or the error says why) before anything is written.
@@ -71,8 +72,9 @@ def train_in_blocks(
         resume = resume and layout.checkpoint_path(run_dir).is_file()
         return train(scene, run_dir, config, resume=resume, progress=progress, log=log)
     n_train = len(scene.split("train"))
-    log(f"{len(blocks)} blocks of at most {options.keyframe_budget} training keyframes and "
-        f"{options.face_budget} warm-start faces, {options.margin_m:g} m overlap: "
+    sized = (f"of at most {options.keyframe_budget} training keyframes and {options.face_budget} warm-start "
+             "faces" if options.count == "auto" else f"(--blocks {options.count})")  # fmt: skip
+    log(f"{len(blocks)} blocks {sized}, {options.margin_m:g} m overlap: "
         + ", ".join(f"{b.n_train}" for b in blocks) + " training keyframes")  # fmt: skip
     done = {
         b.index: json.loads(f.read_text())

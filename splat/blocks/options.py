@@ -11,6 +11,9 @@ class BlockOptions:
     """How ``lts train --blocks`` partitions and where it runs.
 
     Attributes:
+        count: ``auto`` (blocks sized by the budgets) or a number of blocks (the budgets are then
+            ignored: the block with the most training keyframes is halved until there are that many,
+            or none can be halved).
         keyframe_budget: most training keyframes per block.
         face_budget: most warm-start mesh faces per block core.
         margin_m: overlap margin around each block's core (m).
@@ -19,9 +22,19 @@ class BlockOptions:
         threads: CPU threads per block (None: the cluster's CPUs shared by the blocks that run at once).
     """
 
+    count: str = "auto"
     keyframe_budget: int = 150
     face_budget: int = 1_000_000
     margin_m: float = 2.0
     ray_address: str | None = None
     cpus: int | None = None
     threads: int | None = None
+
+
+def parse_block_count(value: str) -> str:
+    """``--blocks``'s value, checked: ``auto`` or a whole number of blocks >= 1 (as text)."""
+    from rig.errors import InputError
+
+    if value == "auto" or (value.isdigit() and int(value) >= 1):
+        return value
+    raise InputError(f"expected auto or a number of blocks >= 1, got {value!r}", field="blocks")

@@ -179,6 +179,7 @@ def partition_scene(
     keyframe_budget: int,
     face_budget: int,
     margin_m: float,
+    count: int | None = None,
 ) -> Partition:
     """Blocks of ``scene`` whose training keyframes and warm-start faces are within the budgets.
 
@@ -188,6 +189,9 @@ def partition_scene(
         keyframe_budget: most training keyframes a block should hold (≥ 1).
         face_budget: most warm-start faces a block's expanded region should hold (≥ 1).
         margin_m: overlap margin around each core (m, ≥ 0).
+        count: a number of blocks instead of the budgets: the block with the most training
+            keyframes is halved at the median of its cameras until there are ``count`` (fewer when
+            no block can be halved any more).
 
     Raises:
         InputError: a budget below 1 or a negative margin.
@@ -210,8 +214,17 @@ def partition_scene(
         return Block(0, core, margin_m, names, int((sees & is_train).sum()),
                      int(probe.in_expanded(faces_xy).sum()))  # fmt: skip
 
-    leaves: list[Block] = []
-    pending = [(make(np.array([[-np.inf, -np.inf], [np.inf, np.inf]])), 0)]
+    whole = make(np.array([[-np.inf, -np.inf], [np.inf, np.inf]]))
+    leaves: list[Block] = [whole] if count is not None else []
+    while count is not None and len(leaves) < count:
+        by_size = sorted(leaves, key=lambda b: -b.n_train)
+        splits = ((b, _bisect(b.core, centres[is_train], margin_m)) for b in by_size)
+        largest, cores = next(((b, c) for b, c in splits if c is not None), (None, None))
+        if largest is None:
+            break  # no block can be halved any more
+        leaves.remove(largest)
+        leaves += [make(core) for core in cores]
+    pending = [(whole, 0)] if count is None else []
     while pending:
         block, depth = pending.pop()
         cores = None

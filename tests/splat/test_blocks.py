@@ -104,6 +104,8 @@ def test_blocks_tile_the_plane_and_hold_their_budgets(tmp_path):
         assert standing <= set(b.keyframes)
     firsts = [min(int(name) for name in b.keyframes) for b in blocks]
     assert firsts == sorted(firsts)
+    three = partition_scene(scene, faces, keyframe_budget=1, face_budget=1, margin_m=1.0, count=3)
+    assert len(three.blocks) == 3  # a count instead of the budgets
     by_faces = partition_scene(scene, faces, keyframe_budget=100, face_budget=300, margin_m=1.0)
     assert len(by_faces.blocks) > 1 and all(int(b.in_core(xy).sum()) <= 300 for b in by_faces.blocks)
 
@@ -176,7 +178,7 @@ def _run(args: list, **kwargs) -> subprocess.CompletedProcess:
 def test_blocks_without_ray_installed_is_one_line_naming_the_extra(scene_dir, tmp_path):
     hide_ray = "import sys; sys.modules['ray'] = None; " + LTS[2]
     env = {**os.environ, "COLUMNS": "400"}
-    args = ["train", scene_dir, "--out", tmp_path / "run", "--blocks"]
+    args = ["train", scene_dir, "--out", tmp_path / "run", "--blocks", "auto"]
     done = subprocess.run(
         [sys.executable, "-c", hide_ray, *map(str, args)], capture_output=True, text=True, env=env
     )
@@ -201,8 +203,20 @@ def test_block_options_without_blocks_are_refused(scene_dir, tmp_path, lts_cli):
 @pytest.mark.slow
 def test_blocks_on_ray_merge_into_a_run_that_lts_eval_reads(scene_dir, tmp_path):
     run = tmp_path / "run"
-    args = ["train", scene_dir, "--out", run, "--blocks", "--block-keyframes", 4, "--block-margin", 0.1,
-            "--preset", "fast", "--iterations", 60, "--no-progress", "--json"]  # fmt: skip
+    blocks = ["--blocks", "auto", "--block-keyframes", 4, "--block-margin", 0.1]
+    args = [
+        "train",
+        scene_dir,
+        "--out",
+        run,
+        *blocks,
+        "--preset",
+        "fast",
+        "--iterations",
+        60,
+        "--no-progress",
+        "--json",
+    ]
     done = _run(args, timeout=600)
     assert done.returncode == 0, done.stderr + done.stdout
     summary = json.loads(done.stdout.strip().splitlines()[-1])
