@@ -14,9 +14,10 @@ def sim(
     preset: str = typer.Option(
         "room",
         "--preset",
-        help="Scene preset: room, corridor, floor (a 170 m corridor through a building floor, 2 minutes: "
-        "for block training), stairs, boards (four chessboards, for calibration) or street (a city street "
-        "driven by a car: traffic, sky, a 64-beam LiDAR).",
+        help="Scene preset: room, office (furnished: chairs, plants, lamps, bookcases, photographic "
+        "textures; walked hand-held: for image fidelity), corridor, floor (a 170 m corridor through a "
+        "building floor, 2 minutes: for block training), stairs, boards (four chessboards, for "
+        "calibration) or street (a city street driven by a car: traffic, sky, a 64-beam LiDAR).",
     ),
     mesh: Path | None = typer.Option(
         None, "--mesh", help="User mesh (PLY/OBJ/GLB, vertex colours or texture)."
@@ -37,7 +38,7 @@ def sim(
         None,
         "--carrier",
         help="wheeled (camera ~0.45 m high), handheld or car (~1.65 m). \\[default: the preset's; wheeled, "
-        "street: car]",
+        "office: handheld, street: car]",
         show_default=False,
     ),
     fps: float = typer.Option(30.0, "--fps", help="Camera frame rate (Hz)."),

@@ -17,26 +17,14 @@ from scipy.spatial.transform import Rotation
 from rig.errors import InputError
 from rig.sim.board import BoardSpec, board_mesh
 from rig.sim.movers import Mover
-from rig.sim.shapes import SceneMesh, box, join_parts
+from rig.sim.office import OFFICE_PATH, office
+from rig.sim.shapes import SceneMesh, box, join_parts, shell
 from rig.sim.street import EGO_LANE_Y, EGO_SPEED_MPS, street, street_traffic
 from rig.sim.textures import MATERIAL_IDS
 from rig.transforms import make_transform
 
 #: Rotation from a LiDAR frame (x forward, y left, z up) to the OpenCV camera frame.
 R_CAM_LIDAR_NOMINAL = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-
-
-def shell(
-    size: tuple[float, float, float], walls: str, floor: str = "tiles", ceiling: str = "ceiling"
-) -> SceneMesh:
-    """Inward-facing box from (0, 0, 0) to ``size``: floor, ceiling and four walls."""
-    solid = trimesh.creation.box(extents=size, transform=make_transform(np.eye(3), np.asarray(size) / 2))
-    mesh = trimesh.Trimesh(solid.vertices, solid.faces[:, ::-1])  # reversed winding: normals point in
-    nz = mesh.face_normals[:, 2]
-    material = np.where(
-        nz > 0.5, MATERIAL_IDS[floor], np.where(nz < -0.5, MATERIAL_IDS[ceiling], MATERIAL_IDS[walls])
-    )
-    return SceneMesh(mesh, material)
 
 
 def table(centre_xy: tuple[float, float], rng: np.random.Generator) -> list[SceneMesh]:
@@ -303,6 +291,15 @@ PRESETS: dict[str, Preset] = {
         ((2.0, 2.0), (5.0, 2.0), (5.0, 4.0), (2.0, 4.0)),
         True,
         _extrinsic((0.8, -1.2, 0.6), (0.03, -0.08, -0.02)),
+    ),
+    "office": Preset(
+        "office",
+        office,
+        OFFICE_PATH,
+        True,
+        _extrinsic((-0.8, 1.2, 0.4), (0.02, -0.08, -0.02)),
+        speed_mps=0.5,
+        sensor_defaults={"carrier": "handheld"},
     ),
     "street": Preset(
         "street",

@@ -2,8 +2,9 @@
 
 Each material is a colour image that tiles a square of ``period_m`` metres, built from spectrally
 shaped (1/f) noise, which has structure at every scale, plus a material-specific pattern (tiles,
-planks, bricks, weave). Lookups use a mip pyramid chosen by the pixel footprint so distant
-surfaces do not alias.
+planks, bricks, weave), or from a photograph that scikit-image ships in its wheel (brick, gravel,
+grass and a few pictures), so that scenes also have the texture statistics of real surfaces.
+Lookups use a mip pyramid chosen by the pixel footprint so distant surfaces do not alias.
 """
 
 from __future__ import annotations
@@ -24,9 +25,11 @@ class Material:
     Attributes:
         name: material name (``plaster``, ``tiles``, ...).
         colour: ``(3,)`` base RGB in [0, 1].
-        pattern: ``noise``, ``tiles``, ``planks``, ``bricks`` or ``weave``.
+        pattern: ``noise``, ``tiles``, ``planks``, ``bricks``, ``weave``, or ``photo`` (a picture
+            from ``skimage.data``; :data:`PHOTOS` says which and how it is laid).
         period_m: side of the square the texture tiles, in metres.
-        contrast: amplitude of the multi-scale noise around the base colour.
+        contrast: amplitude of the multi-scale noise (a grey photo's: of its brightness) around
+            the base colour.
         reflectivity: LiDAR reflectivity in [0, 1] (drives intensity).
     """
 
@@ -60,8 +63,28 @@ MATERIALS: tuple[Material, ...] = (
     Material("paint_red", (0.70, 0.13, 0.10), "noise", 8.0, 0.04, 0.60),
     Material("paint_white", (0.86, 0.86, 0.84), "noise", 8.0, 0.04, 0.80),
     Material("paint_blue", (0.14, 0.24, 0.58), "noise", 8.0, 0.04, 0.50),
+    # The office (appended): photographs. A grey one is tinted with the colour; a colour one
+    # (a poster, a monitor's picture) is shown as it is.
+    Material("brick_photo", (0.66, 0.40, 0.32), "photo", 1.2, 1.0, 0.40),
+    Material("carpet", (0.40, 0.42, 0.48), "photo", 0.8, 1.0, 0.30),
+    Material("leaves", (0.24, 0.48, 0.16), "photo", 0.3, 1.2, 0.50),
+    Material("poster_astronaut", (1.0, 1.0, 1.0), "photo", 0.8, 1.0, 0.60),
+    Material("poster_coffee", (1.0, 1.0, 1.0), "photo", 0.8, 1.0, 0.60),
+    Material("poster_chelsea", (1.0, 1.0, 1.0), "photo", 0.8, 1.0, 0.60),
+    Material("screen", (1.0, 1.0, 1.0), "photo", 0.5, 1.0, 0.10),
 )
 MATERIAL_IDS = {m.name: i for i, m in enumerate(MATERIALS)}
+#: The picture of each ``photo`` material (a ``skimage.data`` function) and whether it is laid
+#: mirrored 2 × 2, which makes a texture photograph tile without seams (a picture is laid once).
+PHOTOS = {
+    "brick_photo": ("brick", True),
+    "carpet": ("gravel", True),
+    "leaves": ("grass", True),
+    "poster_astronaut": ("astronaut", False),
+    "poster_coffee": ("coffee", False),
+    "poster_chelsea": ("chelsea", False),
+    "screen": ("rocket", False),
+}
 
 
 def fractal_noise(rng: np.random.Generator, size: int, beta: float = 1.6) -> np.ndarray:
@@ -118,8 +141,32 @@ def _pattern(material: Material, rng: np.random.Generator, size: int) -> np.ndar
     return np.zeros((size, size))
 
 
+def photo_texture(material: Material, size: int = TEXTURE_SIZE) -> np.ndarray:
+    """RGB texture ``(size, size, 3)`` float32 in [0, 1] of a ``photo`` material: the centre square
+    of its picture, upright on walls (texture rows run up), a grey one tinted by the colour."""
+    import skimage.data  # here: most importers of this module build no texture
+
+    name, mirrored = PHOTOS[material.name]
+    picture = np.asarray(getattr(skimage.data, name)(), dtype=np.float32) / 255.0
+    h, w = picture.shape[:2]
+    side = min(h, w)
+    square = picture[(h - side) // 2 : (h - side) // 2 + side, (w - side) // 2 : (w - side) // 2 + side]
+    tile = size // 2 if mirrored else size
+    square = cv2.resize(square, (tile, tile), interpolation=cv2.INTER_AREA)
+    if mirrored:
+        row = np.concatenate([square, square[:, ::-1]], axis=1)
+        square = np.concatenate([row, row[::-1]], axis=0)
+    square = square[::-1]
+    if square.ndim == 2:
+        brightness = 1.0 + material.contrast * (square / square.mean() - 1.0)
+        square = np.asarray(material.colour) * brightness[..., None]
+    return np.ascontiguousarray(np.clip(square, 0.0, 1.0), dtype=np.float32)
+
+
 def material_texture(material: Material, rng: np.random.Generator, size: int = TEXTURE_SIZE) -> np.ndarray:
     """RGB texture ``(size, size, 3)`` float32 in [0, 1] for one material."""
+    if material.pattern == "photo":
+        return photo_texture(material, size)
     coarse = fractal_noise(rng, size, 2.4)  # large stains and shading variations
     fine = fractal_noise(rng, size, 1.2)  # grain
     brightness = 0.6 * coarse + 0.4 * fine + _pattern(material, rng, size)
