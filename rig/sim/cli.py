@@ -33,7 +33,9 @@ def sim(
         help="Seconds of motion (presets). \\[default: 20, floor: 120]",
         show_default=False,
     ),
-    quick: bool = typer.Option(False, "--quick", help="Small run for tests: 3 s, 160x120."),
+    quick: bool = typer.Option(
+        False, "--quick", help="Small run for tests: 3 s, 160x120, moving from the first frame."
+    ),
     carrier: str | None = typer.Option(
         None,
         "--carrier",

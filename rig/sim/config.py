@@ -24,7 +24,7 @@ SENSOR_DEFAULTS = {
     "max_range_m": 40.0,
 }
 #: What ``--quick`` changes: a short run at a small image size, for tests and smoke checks.
-QUICK = {"duration_s": 3.0, "width": 160, "height": 120, "lidar_points": 8000}
+QUICK = {"duration_s": 3.0, "width": 160, "height": 120, "lidar_points": 8000, "from_rest": False}
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,8 @@ class SimConfig:
             instead of a preset; ``trajectory_rate_hz`` times trajectories without stamps.
         seed: seeds scene layout, textures, path wobble, clocks and every noise.
         duration_s: seconds of motion along a preset's path (the preset's: 20, ``floor`` 120).
+        from_rest: the robot starts from rest and stops at the end; ``False``: it is moving at
+            its cruising speed from the first frame to the last (the quick run's 3 s).
         carrier: ``wheeled`` (camera 0.35–0.55 m high), ``handheld`` (1.3–1.5 m) or ``car``
             (1.6–1.7 m).
         fps, width, height, camera_model: the camera (``pinhole`` or ``fisheye``).
@@ -56,6 +58,7 @@ class SimConfig:
     trajectory_rate_hz: float = 30.0
     seed: int = 0
     duration_s: float | None = None
+    from_rest: bool = True
     carrier: str | None = None
     fps: float = 30.0
     width: int | None = None

@@ -82,6 +82,7 @@ def prepare(config: SimConfig) -> SimRun:
             carrier=config.carrier,
             speed_mps=preset.speed_mps,
             closed=preset.closed,
+            from_rest=config.from_rest,
         )  # type: ignore[arg-type]
         T_cam_lidar = preset.T_cam_lidar
     camera_clock, lidar_clock = rig_clocks(rng_clock, config.time_offset_s)

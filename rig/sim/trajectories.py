@@ -50,13 +50,16 @@ def path_motion(
     carrier: Carrier = "wheeled",
     speed_mps: float = 0.45,
     closed: bool = True,
+    from_rest: bool = True,
 ) -> Motion:
     """Camera motion along a path through ``waypoints`` ``(K, 2)`` (x, y in the world, z up).
 
     A closed path is driven round as often as ``duration_s`` needs; an open one must be long
     enough. The wheeled camera rides 0.35–0.55 m high, pitched a few degrees down with a slight
     rocking; the hand-held one 1.3–1.5 m high with bob, sway and a slow look-around; the car's
-    1.6–1.7 m high on the roof, level, with a little body roll and pitch.
+    1.6–1.7 m high on the roof, level, with a little body roll and pitch. ``from_rest``: it
+    accelerates from rest and brakes to a stop; otherwise it is at speed from the first instant to
+    the last (a short run that moves from its first frame).
     """
     pts = np.asarray(waypoints, dtype=np.float64)
     if closed:
@@ -67,7 +70,8 @@ def path_motion(
 
     # Distance along the path (chord parameter) as the integral of the speed profile.
     t = np.arange(0.0, duration_s + 1e-9, 1e-3)
-    s = np.concatenate([[0.0], np.cumsum(speed_mps * _smooth_ramp(t, duration_s)[:-1] * 1e-3)])
+    speed = speed_mps * (_smooth_ramp(t, duration_s) if from_rest else np.ones_like(t))
+    s = np.concatenate([[0.0], np.cumsum(speed[:-1] * 1e-3)])
     if not closed and s[-1] > length:
         raise InputError(
             f"this open path is {length:.1f} m long, enough for {length / speed_mps:.0f} s; "
@@ -104,4 +108,4 @@ def path_motion(
 
     R_world_body = Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll])).as_matrix()
     positions = np.column_stack([xy, z])
-    return Motion(knots, positions, R_world_body @ R_BODY_CAM, at_rest=True)
+    return Motion(knots, positions, R_world_body @ R_BODY_CAM, at_rest=from_rest)

@@ -155,3 +155,17 @@ def test_textured_mesh_is_sampled_through_its_uv_map(tmp_path: Path) -> None:
     hits = world.raycaster.cast(origins, np.array([[0.0, 0.0, -1.0]] * 2))
     colour = world.appearance.colour(hits, np.zeros(2))
     assert np.allclose(colour, [[1, 0, 0], [0, 0, 1]], atol=0.01)  # the mesh's own colours, unshaded
+
+
+def test_the_quick_run_moves_from_its_first_frame_to_its_last():
+    quick = prepare(SimConfig(preset="room").quick()).motion
+    full = prepare(SimConfig(preset="room", duration_s=3.0)).motion
+    t = np.array([0.0, 0.05, 2.95, 3.0])
+    for motion, moving in ((quick, True), (full, False)):
+        p = motion.positions(t)
+        first, last = np.linalg.norm(p[1] - p[0]) / 0.05, np.linalg.norm(p[3] - p[2]) / 0.05
+        if moving:  # at about the room's 0.45 m/s at both ends (a spline's speed varies a little)
+            assert 0.3 < first < 0.6 and 0.3 < last < 0.6
+        else:  # from rest, to rest
+            assert first < 0.05 and last < 0.05
+    assert np.linalg.norm(np.diff(quick.positions(np.linspace(0, 3, 300)), axis=0), axis=1).sum() > 1.2
