@@ -12,13 +12,20 @@ import numpy as np
 
 
 def ransac_plane(
-    points: np.ndarray, threshold_m: float, iterations: int = 500, seed: int = 0, max_support: int = 20_000
+    points: np.ndarray,
+    threshold_m: float,
+    iterations: int = 500,
+    seed: int = 0,
+    max_support: int = 20_000,
+    normal_near: tuple[np.ndarray, float] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Unit-normal plane ``(4,)`` (``n·x + d = 0``, refined by least squares on the inliers) and
     the inlier indices of the points ``(N, 3)`` within ``threshold_m`` of the best-supported of
     ``iterations`` seeded three-point planes. Hypotheses are scored on at most ``max_support``
-    points (memory grows as iterations × support); inliers are taken from all of them. No
-    hypothesis (fewer than three distinct points): a zero plane and no inliers."""
+    points (memory grows as iterations × support); inliers are taken from all of them.
+    ``normal_near`` (a unit axis ``(3,)``, degrees): only hypotheses whose normal is within that
+    angle of the axis, either way (the floor among walls). No hypothesis (fewer than three
+    distinct points, or none near the axis): a zero plane and no inliers."""
     rng = np.random.default_rng(seed)
     sample = points
     if len(points) > max_support:
@@ -27,6 +34,9 @@ def ransac_plane(
     normals = np.cross(triples[:, 1] - triples[:, 0], triples[:, 2] - triples[:, 0])
     length = np.linalg.norm(normals, axis=1)
     ok = length > 1e-12
+    if normal_near is not None:
+        axis, max_deg = normal_near
+        ok &= np.abs(normals @ axis) >= np.cos(np.radians(max_deg)) * length
     if not ok.any():
         return np.zeros(4), np.zeros(0, dtype=np.int64)
     normals, triples = normals[ok] / length[ok, None], triples[ok]

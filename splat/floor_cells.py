@@ -20,6 +20,8 @@ from scipy import ndimage
 
 #: Structure taller than this above the floor is a wall: no floor is completed under it.
 WALL_HEIGHT_M = 1.8
+#: LiDAR returns lower than this above the floor plane are the floor itself.
+FLOOR_CLEARANCE_M = 0.1
 
 
 @dataclass(frozen=True)
@@ -46,6 +48,11 @@ class PlaneGrid:
         """Signed heights ``(N,)`` of points ``(N, 3)`` above the plane."""
         return points @ self.plane[:3] + self.plane[3]
 
+    def lying_on(self, triangles: np.ndarray, tolerance_m: float = 0.03) -> np.ndarray:
+        """``(F,)`` True where all three corners of ``triangles`` ``(F, 3, 3)`` lie within
+        ``tolerance_m`` of the plane: floor, as a grid cell or a flat patch of it."""
+        return np.all(np.abs(self.heights(triangles.reshape(-1, 3))).reshape(-1, 3) <= tolerance_m, axis=1)
+
     def triangles(self, cells: np.ndarray) -> np.ndarray:
         """Two triangles per cell ``(2C, 3, 3)``, wound so that their normals point up."""
         if len(cells) == 0:
@@ -59,6 +66,47 @@ class PlaneGrid:
         if np.cross(triangles[0, 1] - triangles[0, 0], triangles[0, 2] - triangles[0, 0]) @ n < 0:
             triangles = triangles[:, ::-1]
         return triangles
+
+
+class ReturnColumns:
+    """The LiDAR returns over the floor grid as columns standing on the floor: the highest return
+    between :data:`FLOOR_CLEARANCE_M` and :data:`WALL_HEIGHT_M` above each cell (a wall, a box's
+    side; not the floor itself, not the ceiling). A sight line to the floor is blocked where it
+    passes a column lower than its top, wherever the warm-start mesh has a hole there; under a
+    table it is blocked too (the completion fills that floor instead).
+
+    Args:
+        grid: the floor grid.
+        points: ``(N, 3)`` LiDAR returns in the world frame.
+        tolerance_m: a line passes this close above a column's top.
+    """
+
+    def __init__(self, grid: PlaneGrid, points: np.ndarray, tolerance_m: float = 0.05) -> None:
+        self.grid, self.tolerance_m = grid, tolerance_m
+        heights = grid.heights(points)
+        standing = (heights > FLOOR_CLEARANCE_M) & (heights < WALL_HEIGHT_M)
+        cells, heights = grid.cells(points[standing]), heights[standing]
+        self.low = cells.min(axis=0) if len(cells) else np.zeros(2, dtype=np.int64)
+        self.top = np.full(tuple(cells.max(axis=0) - self.low + 1) if len(cells) else (1, 1), -np.inf)
+        np.maximum.at(self.top, tuple((cells - self.low).T), heights)
+
+    def blocked(self, origin: np.ndarray, points: np.ndarray, margin_m: float) -> np.ndarray:
+        """``(N,)`` True where the straight line from ``origin`` ``(3,)`` to a floor point
+        ``(N, 3)`` passes a column lower than its top before the last ``margin_m`` of its way."""
+        if len(points) == 0:
+            return np.zeros(0, dtype=bool)
+        length = np.linalg.norm(points - origin, axis=1)
+        steps = int(np.ceil(2 * length.max() / self.grid.cell_m))
+        s = (np.arange(steps) + 0.5) / steps  # (S,) fractions of the way, every half cell or less
+        samples = origin + s[:, None, None] * (points - origin)[None]  # (S, N, 3)
+        line_height = self.grid.heights(samples.reshape(-1, 3))
+        cells = self.grid.cells(samples.reshape(-1, 3)) - self.low
+        inside = np.all((cells >= 0) & (cells < self.top.shape), axis=1)
+        top = np.full(len(cells), -np.inf)
+        top[inside] = self.top[tuple(cells[inside].T)]
+        through = (top >= line_height - self.tolerance_m).reshape(steps, -1)
+        before_end = s[:, None] * length[None] < length[None] - margin_m
+        return np.any(through & before_end, axis=0)
 
 
 def enclosed_hidden_cells(

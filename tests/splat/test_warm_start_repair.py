@@ -8,8 +8,10 @@ import pytest
 import trimesh
 from training_scene import WALL_Y, corner_mesh, write_training_scene
 
+from rig.plane_fit import ransac_plane
 from slam_bridge.scene import KeyframeLidar, load_scene
-from splat.floor_cells import PlaneGrid, enclosed_hidden_cells
+from splat.floor_cells import PlaneGrid, ReturnColumns, enclosed_hidden_cells
+from splat.init_mesh import fit_floor_plane
 from splat.lidar_snap import snap_to_lidar
 
 FLOOR = np.array([0.0, 0.0, 1.0, 0.0])
@@ -131,3 +133,55 @@ def test_plane_grid_triangles_cover_their_cells_facing_up():
     assert np.all(normals[:, 2] > 0)
     np.testing.assert_allclose(0.5 * np.linalg.norm(normals, axis=1).sum(), 2 * 0.04)
     np.testing.assert_array_equal(np.unique(grid.cells(triangles.mean(axis=1)), axis=0), cells)
+
+
+def _camera_poses(positions: list[tuple[float, float, float]]) -> np.ndarray:
+    """Level cameras ``(K, 4, 4)`` at ``positions`` looking along +x (OpenCV axes: y down)."""
+    R = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    poses = np.tile(np.eye(4), (len(positions), 1, 1))
+    poses[:, :3, :3] = R
+    poses[:, :3, 3] = positions
+    return poses
+
+
+def test_the_floor_plane_comes_from_the_returns_not_from_a_tilted_patch_of_mesh():
+    """A warm start whose only floor is a small patch tilted by 3° (a simplified TSDF floor seen
+    far ahead) and LiDAR returns on the whole floor: the plane is the returns' level floor."""
+    rng = np.random.default_rng(0)
+    slab = _box((1.0, 1.0, 0.01), (0, 0, 0))
+    patch = trimesh.Trimesh(*trimesh.remesh.subdivide_to_size(slab.vertices, slab.faces, 0.1))
+    patch.apply_transform(trimesh.transformations.rotation_matrix(np.radians(3.0), (0, 1, 0)))
+    patch.apply_translation((4.0, 0.0, 0.2))
+    floor = np.column_stack([rng.uniform(-4, 8, (4000, 2)), rng.normal(0.0, 0.01, 4000)])
+    wall = np.column_stack([np.full(2000, 8.0), rng.uniform(-4, 4, 2000), rng.uniform(0, 2.5, 2000)])
+    poses = _camera_poses([(0.0, 0.0, 0.45), (1.0, 0.0, 0.45)])
+    plane = fit_floor_plane(patch, poses, np.vstack([floor, wall]))
+    np.testing.assert_allclose(plane[:3], (0, 0, 1), atol=2e-3)
+    assert abs(plane[3]) < 0.005
+    tilted = fit_floor_plane(patch, poses)  # without returns: the patch is all there is
+    assert tilted is not None and np.degrees(np.arccos(tilted[2])) > 2.0
+
+
+def test_ransac_keeps_to_hypotheses_near_the_axis():
+    rng = np.random.default_rng(1)
+    wall = np.column_stack([rng.uniform(0, 4, 3000), np.zeros(3000), rng.uniform(0, 2.5, 3000)])
+    floor = np.column_stack([rng.uniform(0, 4, (500, 2)), np.zeros(500)])
+    points = np.vstack([wall, floor])
+    assert abs(ransac_plane(points, 0.02)[0][1]) > 0.99  # the wall has the most support
+    plane, inliers = ransac_plane(points, 0.02, normal_near=(np.array([0.0, 0.0, 1.0]), 10.0))
+    assert abs(plane[2]) > 0.99 and len(inliers) >= 500
+
+
+def test_returns_of_a_wall_block_the_sight_of_the_floor_behind_it():
+    """A wall at x = 3 that the warm-start mesh lost: floor points beyond it are hidden, floor
+    points before it and the floor's and ceiling's own returns block nothing."""
+    rng = np.random.default_rng(2)
+    wall = np.column_stack([np.full(3000, 3.0), rng.uniform(-2, 2, 3000), rng.uniform(0.0, 2.6, 3000)])
+    floor = np.column_stack([rng.uniform(0, 6, (3000, 2)) - (0, 3), rng.normal(0, 0.01, 3000)])
+    ceiling = np.column_stack([rng.uniform(0, 6, (3000, 2)) - (0, 3), np.full(3000, 2.6)])
+    columns = ReturnColumns(PlaneGrid(FLOOR, 0.15), np.vstack([wall, floor, ceiling]))
+    origin = np.array([0.0, 0.0, 0.45])
+    targets = np.array([[1.0, 0.0, 0.0], [2.5, 0.5, 0.0], [3.5, 0.0, 0.0], [5.0, -1.0, 0.0]])
+    np.testing.assert_array_equal(columns.blocked(origin, targets, 0.15), [False, False, True, True])
+    open_room = ReturnColumns(PlaneGrid(FLOOR, 0.15), np.vstack([floor, ceiling]))
+    assert not open_room.blocked(origin, targets, 0.15).any()
