@@ -4,9 +4,10 @@ The render mesh keeps every triangle independent (``3F`` vertices) with its per-
 that is what the rasteriser drew; with camera-only flags, its PLY holds them as the face property
 ``camera_only`` (1: no LiDAR return near the triangle — geometry from the images alone, or the
 floor filled where the LiDAR never looked — lower confidence). The collision mesh keeps only the
-triangles a physics engine should collide with — opaque, seen from a training view, not
-degenerate — welds their corners into one connected surface and drops duplicate faces. It is
-written as PLY (the toolkit's mesh format) and OBJ (the format pybullet reads).
+triangles a physics engine should collide with — opaque, seen from a training view or lying on
+the floor where no camera looked, not degenerate — welds their corners into one connected surface
+and drops duplicate faces. It is written as PLY (the toolkit's mesh format) and OBJ (the format
+pybullet reads).
 """
 
 from __future__ import annotations
@@ -38,7 +39,9 @@ class ExportResult:
         n_triangles: triangles in the render mesh (all of the model's).
         n_collision_triangles: triangles in the collision mesh.
         n_removed_transparent: triangles left out of the collision mesh for opacity < min_opacity.
-        n_removed_unseen: of the rest, those that dominated no pixel of any training view.
+        n_removed_unseen: of the rest, those that dominated no pixel of any training view and do
+            not lie on the floor.
+        n_kept_unseen_floor: opaque triangles no training view saw, kept as floor.
         n_removed_degenerate: of the rest, those thinner than the weld distance (after welding).
         n_removed_duplicate: of the rest, repeats of a face already kept (same corners, any order).
         n_collision_vertices: vertices of the welded collision mesh.
@@ -49,6 +52,7 @@ class ExportResult:
     n_collision_triangles: int
     n_removed_transparent: int
     n_removed_unseen: int
+    n_kept_unseen_floor: int
     n_removed_degenerate: int
     n_removed_duplicate: int
     n_collision_vertices: int
@@ -59,6 +63,7 @@ def export_mesh(
     out_dir: Path,
     *,
     seen: torch.Tensor | None = None,
+    floor: np.ndarray | None = None,
     camera_only: np.ndarray | None = None,
     min_opacity: float = 0.5,
     weld_m: float = 1e-3,
@@ -70,6 +75,8 @@ def export_mesh(
         out_dir: created if missing.
         seen: ``(F,)`` bool, True where the triangle dominated at least one pixel of a training
             view; None keeps all triangles.
+        floor: ``(F,)`` bool, True where a triangle lies on the floor: kept in the collision
+            mesh also where no view sees it (the completed floor); None: none.
         camera_only: ``(F,)`` bool, True where no LiDAR return backs the triangle: flagged in the
             render PLY; None: no flags.
         min_opacity: triangles with a lower activated opacity are left out of the collision mesh.
@@ -88,8 +95,11 @@ def export_mesh(
     opacity = model.triangle_opacity().detach().cpu().numpy()
     n = len(triangles)
     keep_seen = np.ones(n, dtype=bool) if seen is None else _seen_mask(seen, n)
-    if camera_only is not None and np.shape(camera_only) != (n,):
-        raise InputError(f"expected ({n},) flags, got {np.shape(camera_only)}", field="camera_only")
+    for name, flags in (("floor", floor), ("camera_only", camera_only)):
+        if flags is not None and np.shape(flags) != (n,):
+            raise InputError(f"expected ({n},) flags, got {np.shape(flags)}", field=name)
+    unseen_floor = np.zeros(n, dtype=bool) if floor is None else np.asarray(floor, dtype=bool) & ~keep_seen
+    keep_seen = keep_seen | unseen_floor  # a new array: the mask may share the caller's tensor
 
     opaque = opacity >= min_opacity
     out_dir = Path(out_dir)
@@ -116,6 +126,7 @@ def export_mesh(
         n_collision_triangles=len(collision.faces),
         n_removed_transparent=int((~opaque).sum()),
         n_removed_unseen=int((opaque & ~keep_seen).sum()),
+        n_kept_unseen_floor=int((opaque & unseen_floor).sum()),
         n_removed_degenerate=n_degenerate,
         n_removed_duplicate=n_duplicate,
         n_collision_vertices=len(collision.vertices),

@@ -524,26 +524,48 @@ def seen_triangles(model: TriangleModel, keyframes: list[Keyframe], camera: Came
     return seen
 
 
-def camera_only_triangles(model: TriangleModel, scene: Scene, keyframes: list[Keyframe]) -> np.ndarray:
-    """``(F,)`` bool: triangles whose centroid no LiDAR return of ``keyframes`` explains
-    (:func:`splat.camera_only.unexplained_points`): geometry from the images alone."""
+def camera_only_triangles(model: TriangleModel, lidar: np.ndarray, keyframes: list[Keyframe]) -> np.ndarray:
+    """``(F,)`` bool: triangles whose centroid no LiDAR return ``lidar`` ``(N, 3)`` of ``keyframes``
+    explains (:func:`splat.camera_only.unexplained_points`): geometry from the images alone."""
     from splat.camera_only import unexplained_points
-    from splat.lidar_points import lidar_points
 
     centroids = model.params["vertices"].detach().mean(dim=1).cpu().double().numpy()
     centres = np.stack([k.T_world_cam[:3, 3] for k in keyframes])
-    return unexplained_points(centroids, lidar_points(scene, keyframes), centres)
+    return unexplained_points(centroids, lidar, centres)
+
+
+def floor_triangles(
+    model: TriangleModel, scene: Scene, keyframes: list[Keyframe], lidar: np.ndarray
+) -> np.ndarray:
+    """``(F,)`` bool: triangles lying on the floor plane of the scene's warm-start mesh and the
+    LiDAR returns ``lidar`` ``(N, 3)`` (:func:`splat.init_mesh.fit_floor_plane`, as the ground fill
+    finds it); all False without a floor."""
+    from rig.mesh_io import load_mesh
+    from splat.floor_cells import PlaneGrid
+    from splat.init_mesh import fit_floor_plane
+
+    poses = np.stack([k.T_world_cam for k in keyframes])
+    plane = fit_floor_plane(load_mesh(scene.mesh_path), poses, lidar)
+    triangles = model.params["vertices"].detach().cpu().double().numpy()
+    if plane is None:
+        return np.zeros(len(triangles), dtype=bool)
+    return PlaneGrid(plane, 1.0).lying_on(triangles)
 
 
 def export_run(model: TriangleModel, scene: Scene, keyframes: list[Keyframe], run_dir: Path) -> dict:
     """Export ``model``'s meshes into ``run_dir`` (:func:`splat.export.export_mesh`): the collision
-    mesh keeps the triangles seen from ``keyframes``, the render mesh flags those no LiDAR return of
-    theirs explains; returns the export's summary for ``summary.json``."""
+    mesh keeps the triangles seen from ``keyframes`` and the floor no camera sees (the ground fill's
+    completion under furniture and round the path's ends, which never trains: without it a physics
+    probe falls through there); the render mesh flags those no LiDAR return of theirs explains;
+    returns the export's summary for ``summary.json``."""
     from splat.export import export_mesh
+    from splat.lidar_points import lidar_points
 
     seen = seen_triangles(model, keyframes, scene.camera)
-    camera_only = camera_only_triangles(model, scene, keyframes)
-    result = export_mesh(model, run_dir, seen=seen, camera_only=camera_only)
+    lidar = lidar_points(scene, keyframes)
+    camera_only = camera_only_triangles(model, lidar, keyframes)
+    floor = floor_triangles(model, scene, keyframes, lidar)
+    result = export_mesh(model, run_dir, seen=seen, floor=floor, camera_only=camera_only)
     return json.loads(json.dumps(asdict(result), default=str))
 
 

@@ -17,6 +17,7 @@ from splat.background import background_image, background_rgb, camera_rays, cons
 from splat.background_mask import above_lidar
 from splat.config import make_config
 from splat.export import export_mesh
+from splat.lidar_points import lidar_points
 from splat.model import TriangleModel, load_model, save_model
 from splat.param_rows import make_optimizer, replace_rows
 from splat.raster.scenes import pinhole
@@ -208,6 +209,8 @@ def test_training_with_and_without_a_background_exports_only_the_triangles(scene
     export_mesh(
         model,
         tmp_path / "without",
-        camera_only=camera_only_triangles(model, trainer.scene, trainer.train_keyframes),
+        camera_only=camera_only_triangles(
+            model, lidar_points(trainer.scene, trainer.train_keyframes), trainer.train_keyframes
+        ),
     )
     assert (tmp_path / "without" / "mesh.ply").read_bytes() == (tmp_path / "run" / "mesh.ply").read_bytes()

@@ -103,6 +103,23 @@ def test_camera_only_triangles_are_flagged_in_the_render_mesh(tmp_path: Path) ->
         export_mesh(model, tmp_path, seen=seen, camera_only=camera_only[:3])
 
 
+def test_floor_no_view_sees_stays_in_the_collision_mesh(tmp_path: Path) -> None:
+    """Grid triangles flagged as floor are kept though unseen (the completed floor); an unseen
+    triangle off the floor is still left out."""
+    model, seen, _ = scene()
+    seen[8:12] = False  # four grid triangles no view saw (no duplicates among them)
+    floor = np.zeros(model.n_triangles, dtype=bool)
+    floor[8:12] = True
+    result = export_mesh(model, tmp_path, seen=seen, floor=floor)
+    assert result.n_kept_unseen_floor == 4
+    assert result.n_removed_unseen == 2  # the two above the grid
+    assert result.n_collision_triangles == N_GRID
+    without = export_mesh(model, tmp_path / "without", seen=seen)
+    assert without.n_collision_triangles == N_GRID - 4 and without.n_kept_unseen_floor == 0
+    with pytest.raises(InputError, match="flags"):
+        export_mesh(model, tmp_path, seen=seen, floor=floor[:3])
+
+
 def test_weld_distance_is_respected(tmp_path: Path) -> None:
     """Corners jittered by up to 2 mm (pairs up to ~5.7 mm apart) stay apart at a 0.1 mm weld."""
     model, seen, _ = scene(jitter_m=2e-3)
