@@ -30,9 +30,23 @@ def detect_import_format(source: Path, explicit_files: bool = False) -> str:
         return "pin-slam"
     if (source / "scans.pcd").is_file() or (source / "PCD" / "scans.pcd").is_file():
         return "fast-lio"
+    if _holds_one_mesh_and_one_trajectory(source):
+        return "generic"
     raise InputError(
         f"cannot tell which mapper wrote this folder; give --format ({', '.join(IMPORT_FORMATS)})",
         path=source,
+    )
+
+
+def _holds_one_mesh_and_one_trajectory(folder: Path) -> bool:
+    """``folder`` (recursively) holds one mesh file and one trajectory file, as a generic import
+    (or the SLAM folder ``lts slam run`` and ``lts slam import`` write) does."""
+    from slam_bridge.generic import MESH_SUFFIXES, TRAJECTORY_SUFFIXES
+
+    files = [p for p in folder.rglob("*") if p.is_file()]
+    return all(
+        sum(p.suffix.lower() in suffixes for p in files) == 1
+        for suffixes in (MESH_SUFFIXES, TRAJECTORY_SUFFIXES)
     )
 
 

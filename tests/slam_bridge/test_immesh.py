@@ -87,6 +87,12 @@ def test_lts_slam_import_cli(tmp_path: Path) -> None:
     assert (tmp_path / "slam" / "mesh.ply").is_file() and (tmp_path / "slam" / "trajectory.tum").is_file()
     generic = [lts, "slam", "import", "--format", "generic", tmp_path / "slam", "--out", tmp_path / "again"]
     assert subprocess.run(generic, capture_output=True, timeout=120).returncode == 0
+    # A folder of one mesh and one trajectory (as lts slam import writes) is told apart as generic.
+    detected = [lts, "slam", "import", tmp_path / "again", "--out", tmp_path / "detected"]
+    assert subprocess.run(detected, capture_output=True, timeout=120).returncode == 0
+    assert (tmp_path / "detected" / "trajectory.tum").read_bytes() == (
+        tmp_path / "again" / "trajectory.tum"
+    ).read_bytes()
     bad = subprocess.run(
         [lts, "slam", "import", "--format", "nope", tmp_path, "--out", tmp_path / "x"],
         capture_output=True,
