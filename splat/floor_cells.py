@@ -20,6 +20,8 @@ from scipy import ndimage
 
 #: Structure taller than this above the floor is a wall: no floor is completed under it.
 WALL_HEIGHT_M = 1.8
+#: Samples of high vertical faces a cell needs to count as under a wall.
+MIN_WALL_SAMPLES = 3
 #: LiDAR returns lower than this above the floor plane are the floor itself.
 FLOOR_CLEARANCE_M = 0.1
 
@@ -121,7 +123,8 @@ def enclosed_hidden_cells(
 
     The mesh is sampled by area (about nine samples per cell). Up-facing samples within half a
     cell of the plane are floor; from there up to :data:`WALL_HEIGHT_M` they are structure
-    (object footprints, wall bases); higher ones on vertical faces mark walls (a ceiling does not);
+    (object footprints, wall bases); higher ones on vertical faces mark walls where a cell has
+    :data:`MIN_WALL_SAMPLES` of them (a ceiling does not);
     more than two cells below the plane mark a pit. Floor and structure are closed morphologically
     over ``closing_m`` (bridging gaps in the LiDAR mesh), and the holes of that footprint that are
     neither floor, wall nor pit are returned.
@@ -155,5 +158,8 @@ def enclosed_hidden_cells(
     enclosed = ndimage.binary_fill_holes(closed)
     # Closing the floor over one cell keeps cells that random sampling happened to miss out.
     floor_cover = ndimage.binary_closing(raster(covered), structure=np.ones((3, 3), dtype=bool))
-    hidden = enclosed & ~floor_cover & ~raster(cells[wall]) & ~raster(cells[pit])
+    # A wall cell needs a few samples (a wall has dozens): one steep face of a noisy TSDF ceiling
+    # left a 15 cm hole in the completed floor, where a physics probe fell through.
+    walls, count = np.unique(cells[wall], axis=0, return_counts=True)
+    hidden = enclosed & ~floor_cover & ~raster(walls[count >= MIN_WALL_SAMPLES]) & ~raster(cells[pit])
     return np.argwhere(hidden) + low

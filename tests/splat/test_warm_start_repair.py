@@ -185,3 +185,19 @@ def test_returns_of_a_wall_block_the_sight_of_the_floor_behind_it():
     np.testing.assert_array_equal(columns.blocked(origin, targets, 0.15), [False, False, True, True])
     open_room = ReturnColumns(PlaneGrid(FLOOR, 0.15), np.vstack([floor, ceiling]))
     assert not open_room.blocked(origin, targets, 0.15).any()
+
+
+def test_one_steep_face_of_a_noisy_ceiling_is_not_a_wall():
+    """A single 5 cm vertical face at 2.4 m over the box (a TSDF ceiling's noise) leaves the floor
+    under it completed; a real wall there (a 1 × 0.9 m panel) does not."""
+    grid = PlaneGrid(FLOOR, 0.1)
+    sliver = trimesh.Trimesh([[2.03, 2.05, 2.40], [2.08, 2.05, 2.40], [2.03, 2.05, 2.45]], [[0, 1, 2]])
+    below = grid.cells(np.array([[2.05, 2.05, 0.0]]))
+
+    def completed(extra: trimesh.Trimesh) -> bool:
+        mesh = trimesh.util.concatenate([_room_with_box(), extra])
+        cells = enclosed_hidden_cells(mesh, grid, np.zeros((0, 2), dtype=np.int64))
+        return bool((cells == below).all(axis=1).any())
+
+    assert completed(sliver)
+    assert not completed(_box((1.0, 0.02, 0.9), (2.0, 2.05, 2.0)))
