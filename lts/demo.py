@@ -58,13 +58,13 @@ def lidar_shift_ns(simulation: Path, recording: Path) -> int:
     return int(np.median(shifts))
 
 
-def simulate_room(out: Path, quick: bool, seed: int = 0) -> None:
-    """The virtual rig's ``room`` preset into ``out`` (``session.mcap``, ``ground_truth/``);
-    ``quick``: its 3 s, 160×120 run."""
+def simulate_preset(out: Path, preset: str, quick: bool, seed: int = 0) -> None:
+    """The virtual rig's ``preset`` into ``out`` (``session.mcap``, ``ground_truth/``); ``quick``:
+    its 3 s, 160×120 run."""
     from rig.sim.config import SimConfig
     from rig.sim.simulate import simulate
 
-    config = SimConfig(preset="room", seed=seed)
+    config = SimConfig(preset=preset, seed=seed)
     simulate(config.quick() if quick else config, out)
 
 
@@ -121,7 +121,7 @@ def run_demo(
     sim_dir, session, gt = out / "sim", out / "session.mcap", out / "ground_truth"
     stages = StageRunner(out, ("simulate", "record", "ground truth"), log)
     key = ["lts sim", str(sim_dir), "--preset", "room", *(["--quick"] if quick else [])]
-    stages.run("simulate", key, [], sim_dir / "session.mcap", lambda: simulate_room(sim_dir, quick))
+    stages.run("simulate", key, [], sim_dir / "session.mcap", lambda: simulate_preset(sim_dir, "room", quick))
     key = ["rig record", "--sim", str(sim_dir), "--out", str(session)]
     stages.run("record", key, [sim_dir], session, lambda: record_through_mock_devices(sim_dir, session))
 

@@ -12,14 +12,26 @@ from rig.cli_support import console, emit_json
 
 bench_app = typer.Typer(name="bench", help="Benchmarks (timings and memory).", no_args_is_help=True)
 
-SCENE_OPTION = typer.Option(None, "--scene", help="Prepared scene folder (default: a new virtual-rig room).")
+SCENE_OPTION = typer.Option(None, "--scene", help="Prepared scene folder (default: a new virtual-rig scene).")
 GT_OPTION = typer.Option(None, "--gt", help="Virtual-rig ground-truth folder of --scene's session.")
 OUT_OPTION = typer.Option(
     Path("bench_out"), "--out", "-o", help="Where runs, the JSON table and the plot go."
 )
 FULL_OPTION = typer.Option(
-    False, "--full", help="Simulate the full 20 s, 320x240 room instead of the quick one."
+    False, "--full", help="Simulate the full 20 s, 320x240 run instead of the quick 3 s, 160x120 one."
 )
+
+
+def sim_option(default: str) -> typer.models.OptionInfo:
+    """``--sim PRESET``: the virtual-rig preset simulated when no --scene is given."""
+    return typer.Option(
+        default,
+        "--sim",
+        help="Virtual-rig preset simulated when no --scene is given (office: the furnished one with "
+        "photographic textures, for image fidelity; room: the demo's).",
+    )
+
+
 JSON_OPTION = typer.Option(False, "--json", help="Print one JSON object on stdout.")
 
 
@@ -62,6 +74,7 @@ def bench_train_command(
     ),
     scene: Path | None = SCENE_OPTION,
     gt: Path | None = GT_OPTION,
+    sim: str = sim_option("room"),
     out: Path = OUT_OPTION,
     full: bool = FULL_OPTION,
     json_out: bool = JSON_OPTION,
@@ -71,13 +84,15 @@ def bench_train_command(
     from lts.bench.training import bench_profile, bench_train, resolve_scene
 
     if profile:
-        scene_dir = scene if scene is not None else resolve_scene(None, None, out, not full, _log).scene_dir
+        scene_dir = (
+            scene if scene is not None else resolve_scene(None, None, out, sim, not full, _log).scene_dir
+        )
         result = bench_profile(scene_dir, out, (iterations or [3000])[0], _log)
         _print_profile(result)
         if json_out:
             emit_json(result)
         return
-    bench = resolve_scene(scene, gt, out, not full, _log)
+    bench = resolve_scene(scene, gt, out, sim, not full, _log)
     result = bench_train(bench, out, iterations or [300, 600, 1200], triangles, half_resolution, _log)
     _finish(result, json_out)
 
@@ -107,6 +122,7 @@ def bench_ablation_command(
     preset: str = typer.Option("default", help="Training preset for every method."),
     scene: Path | None = SCENE_OPTION,
     gt: Path | None = GT_OPTION,
+    sim: str = sim_option("office"),
     out: Path = OUT_OPTION,
     full: bool = FULL_OPTION,
     json_out: bool = JSON_OPTION,
@@ -114,7 +130,7 @@ def bench_ablation_command(
     """Ours vs the photometric-only TS+ baseline vs the ablations on one scene (Table III analogue)."""
     from lts.bench.training import bench_ablation, resolve_scene
 
-    bench = resolve_scene(scene, gt, out, not full, _log)
+    bench = resolve_scene(scene, gt, out, sim, not full, _log)
     _finish(bench_ablation(bench, out, preset, _log), json_out)
 
 
@@ -126,6 +142,7 @@ def bench_noise_command(
     preset: str = typer.Option("default", help="Training preset."),
     scene: Path | None = SCENE_OPTION,
     gt: Path | None = GT_OPTION,
+    sim: str = sim_option("room"),
     out: Path = OUT_OPTION,
     full: bool = FULL_OPTION,
     json_out: bool = JSON_OPTION,
@@ -133,7 +150,7 @@ def bench_noise_command(
     """Quality against Gaussian noise on the warm-start mesh vertices (Fig. 6 analogue)."""
     from lts.bench.training import bench_noise, resolve_scene
 
-    bench = resolve_scene(scene, gt, out, not full, _log)
+    bench = resolve_scene(scene, gt, out, sim, not full, _log)
     _finish(bench_noise(bench, out, noise, preset, _log), json_out)
 
 

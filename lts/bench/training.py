@@ -34,11 +34,13 @@ class BenchScene:
     gt_dir: Path
 
 
-def virtual_scene(out: Path, quick: bool = True, seed: int = 0, log: Callable = print) -> BenchScene:
-    """Simulate a ``room`` session, map it with the fallback mapper and prepare its scene (with SfM
-    points for the TS+ baseline) under ``out``, each stage reused when up to date. ``quick``: the
-    simulator's 3 s, 160×120 run."""
-    from lts.demo import simulate_room
+def virtual_scene(
+    out: Path, preset: str = "room", quick: bool = True, seed: int = 0, log: Callable = print
+) -> BenchScene:
+    """Simulate a session of the virtual rig's ``preset``, map it with the fallback mapper and
+    prepare its scene (with SfM points for the TS+ baseline) under ``out``, each stage reused when
+    up to date. ``quick``: the simulator's 3 s, 160×120 run."""
+    from lts.demo import simulate_preset
     from lts.pipeline import build_scene, map_session, prepare_key
     from lts.stages import StageRunner
     from slam_bridge.prepare_config import PrepareConfig
@@ -48,8 +50,8 @@ def virtual_scene(out: Path, quick: bool = True, seed: int = 0, log: Callable = 
     # The quick run lasts 3 s: one keyframe per 0.5 s would leave none to test on.
     keyframes = PrepareConfig(keyframe_interval_s=0.2 if quick else 0.5, sparse_points=True)
     stages = StageRunner(out, ("simulate", "slam", "prepare"), log)
-    key = ["lts sim", str(sim), "--preset", "room", "--seed", str(seed), *(["--quick"] if quick else [])]
-    stages.run("simulate", key, [], session, lambda: simulate_room(sim, quick, seed))
+    key = ["lts sim", str(sim), "--preset", preset, "--seed", str(seed), *(["--quick"] if quick else [])]
+    stages.run("simulate", key, [], session, lambda: simulate_preset(sim, preset, quick, seed))
     stages.run("slam", ["lts slam run", str(session)], [session], slam / "mesh.ply",
                lambda: map_session(session, slam, log))  # fmt: skip
     key = ["lts prepare", str(session), *prepare_key(keyframes)]
@@ -292,10 +294,16 @@ def _plot_noise(rows: list[dict], path: Path) -> None:
     _save(plt, fig, path)
 
 
-def resolve_scene(scene: Path | None, gt: Path | None, out: Path, quick: bool, log: Callable) -> BenchScene:
-    """The given scene and ground truth, or a fresh virtual-rig scene under ``out/scene``."""
+def resolve_scene(
+    scene: Path | None, gt: Path | None, out: Path, preset: str, quick: bool, log: Callable
+) -> BenchScene:
+    """The given scene and ground truth, or a fresh virtual-rig scene of ``preset`` under
+    ``out/scene``."""
     if scene is None and gt is None:
-        return virtual_scene(out / "scene", quick=quick, log=log)
+        from rig.sim.scenes import get_preset
+
+        get_preset(preset)  # an unknown name is an error before anything runs
+        return virtual_scene(out / "scene", preset, quick=quick, log=log)
     if scene is None or gt is None:
         raise InputError(
             "give both --scene and --gt, or neither (a virtual-rig scene is made)", field="scene"

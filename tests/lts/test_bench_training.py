@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
+
 from lts.bench.training import _plot_bars, _plot_noise, _plot_pareto, pareto_front
 
 
@@ -23,3 +27,18 @@ def test_plots_are_written(tmp_path):
     _plot_noise(rows, tmp_path / "sub" / "noise.png")
     for name in ("pareto.png", "bars.png", "noise.png"):
         assert (tmp_path / "sub" / name).stat().st_size > 1000
+
+
+def test_an_unknown_virtual_rig_preset_is_refused_before_anything_runs(tmp_path: Path) -> None:
+    lts = Path(sys.executable).parent / "lts"
+    for command in ("ablation", "noise", "train"):
+        out = tmp_path / command
+        result = subprocess.run(
+            [lts, "bench", command, "--sim", "offce", "--out", out],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert result.returncode == 2, result.stderr
+        assert "unknown preset 'offce'" in result.stderr and "office" in result.stderr
+        assert "Traceback" not in result.stderr and not out.exists()
