@@ -24,6 +24,8 @@ WALL_HEIGHT_M = 1.8
 MIN_WALL_SAMPLES = 3
 #: LiDAR returns lower than this above the floor plane are the floor itself.
 FLOOR_CLEARANCE_M = 0.1
+#: A column of returns this tall stands on the floor (a wall, a box), one shorter may not (a table top).
+STANDING_SPAN_M = 0.4
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,20 @@ class PlaneGrid:
         ``tolerance_m`` of the plane: floor, as a grid cell or a flat patch of it."""
         return np.all(np.abs(self.heights(triangles.reshape(-1, 3))).reshape(-1, 3) <= tolerance_m, axis=1)
 
+    def upright_squares(self, points: np.ndarray, towards: np.ndarray) -> np.ndarray:
+        """Two triangles ``(2P, 3, 3)`` per point ``(P, 3)``: an upright square of ``cell_m`` centred on
+        it, facing the horizontal direction to ``towards`` ``(P, 3)`` (a camera)."""
+        n = self.plane[:3]
+        facing = towards - points
+        facing -= np.outer(facing @ n, n)
+        facing /= np.maximum(np.linalg.norm(facing, axis=1, keepdims=True), 1e-9)
+        across = np.cross(n, facing) * (self.cell_m / 2)
+        up = np.broadcast_to(n * (self.cell_m / 2), across.shape)
+        corners = np.stack(
+            [points - across - up, points + across - up, points + across + up, points - across + up], axis=1
+        )
+        return np.concatenate([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]])
+
     def triangles(self, cells: np.ndarray) -> np.ndarray:
         """Two triangles per cell ``(2C, 3, 3)``, wound so that their normals point up."""
         if len(cells) == 0:
@@ -71,44 +87,56 @@ class PlaneGrid:
 
 
 class ReturnColumns:
-    """The LiDAR returns over the floor grid as columns standing on the floor: the highest return
-    between :data:`FLOOR_CLEARANCE_M` and :data:`WALL_HEIGHT_M` above each cell (a wall, a box's
-    side; not the floor itself, not the ceiling). A sight line to the floor is blocked where it
-    passes a column lower than its top, wherever the warm-start mesh has a hole there; under a
-    table it is blocked too (the completion fills that floor instead).
+    """The LiDAR returns over the floor grid as columns: the lowest and the highest return between
+    :data:`FLOOR_CLEARANCE_M` and :data:`WALL_HEIGHT_M` above each cell (not the floor itself, not
+    the ceiling). A column whose returns span :data:`STANDING_SPAN_M` or more (a wall, a box's
+    side) stands on the floor, though a level LiDAR sees its base only from afar; others (a table
+    top) leave the space below them open. A sight line to the floor is blocked where it passes
+    through a column, wherever the warm-start mesh has a hole there.
 
     Args:
         grid: the floor grid.
         points: ``(N, 3)`` LiDAR returns in the world frame.
-        tolerance_m: a line passes this close above a column's top.
+        tolerance_m: a line passes this close above a column's top or below its bottom.
     """
 
     def __init__(self, grid: PlaneGrid, points: np.ndarray, tolerance_m: float = 0.05) -> None:
         self.grid, self.tolerance_m = grid, tolerance_m
         heights = grid.heights(points)
-        standing = (heights > FLOOR_CLEARANCE_M) & (heights < WALL_HEIGHT_M)
-        cells, heights = grid.cells(points[standing]), heights[standing]
+        between = (heights > FLOOR_CLEARANCE_M) & (heights < WALL_HEIGHT_M)
+        cells, heights = grid.cells(points[between]), heights[between]
         self.low = cells.min(axis=0) if len(cells) else np.zeros(2, dtype=np.int64)
-        self.top = np.full(tuple(cells.max(axis=0) - self.low + 1) if len(cells) else (1, 1), -np.inf)
-        np.maximum.at(self.top, tuple((cells - self.low).T), heights)
+        shape = tuple(cells.max(axis=0) - self.low + 1) if len(cells) else (1, 1)
+        index = tuple((cells - self.low).T)
+        self.top, self.bottom = np.full(shape, -np.inf), np.full(shape, np.inf)
+        np.maximum.at(self.top, index, heights)
+        np.minimum.at(self.bottom, index, heights)
+        self.bottom[self.top - self.bottom >= STANDING_SPAN_M] = 0.0
 
-    def blocked(self, origin: np.ndarray, points: np.ndarray, margin_m: float) -> np.ndarray:
-        """``(N,)`` True where the straight line from ``origin`` ``(3,)`` to a floor point
-        ``(N, 3)`` passes a column lower than its top before the last ``margin_m`` of its way."""
+    def first_crossing(
+        self, origin: np.ndarray, points: np.ndarray, margin_m: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Where the straight lines from ``origin`` ``(3,)`` to floor points ``(N, 3)`` first pass
+        through a column, before the last ``margin_m`` of their way: ``(N,)`` True where one does,
+        and ``(N, 3)`` the point of the line there (meaningless where none does)."""
         if len(points) == 0:
-            return np.zeros(0, dtype=bool)
+            return np.zeros(0, dtype=bool), np.zeros((0, 3))
         length = np.linalg.norm(points - origin, axis=1)
         steps = int(np.ceil(2 * length.max() / self.grid.cell_m))
         s = (np.arange(steps) + 0.5) / steps  # (S,) fractions of the way, every half cell or less
-        samples = origin + s[:, None, None] * (points - origin)[None]  # (S, N, 3)
-        line_height = self.grid.heights(samples.reshape(-1, 3))
-        cells = self.grid.cells(samples.reshape(-1, 3)) - self.low
+        samples = (origin + s[:, None, None] * (points - origin)[None]).reshape(-1, 3)  # (S·N, 3)
+        line_height = self.grid.heights(samples)
+        cells = self.grid.cells(samples) - self.low
         inside = np.all((cells >= 0) & (cells < self.top.shape), axis=1)
-        top = np.full(len(cells), -np.inf)
+        top, bottom = np.full(len(cells), -np.inf), np.full(len(cells), np.inf)
         top[inside] = self.top[tuple(cells[inside].T)]
-        through = (top >= line_height - self.tolerance_m).reshape(steps, -1)
-        before_end = s[:, None] * length[None] < length[None] - margin_m
-        return np.any(through & before_end, axis=0)
+        bottom[inside] = self.bottom[tuple(cells[inside].T)]
+        tol = self.tolerance_m
+        through = ((top >= line_height - tol) & (bottom <= line_height + tol)).reshape(steps, -1)
+        through &= s[:, None] * length[None] < length[None] - margin_m
+        first = np.argmax(through, axis=0)
+        crossing = samples.reshape(steps, -1, 3)[first, np.arange(len(points))]
+        return through.any(axis=0), crossing
 
 
 def enclosed_hidden_cells(

@@ -68,7 +68,8 @@ class GroundFill:
     """Floor triangles added to a warm start, and why there are none when there are none.
 
     Attributes:
-        triangles: ``(G, 3, 3)`` world-frame floor triangles the cameras see (two per grid cell).
+        triangles: ``(G, 3, 3)`` world-frame floor triangles the cameras see (two per grid cell),
+            and upright patches where the LiDAR returns close a hole the cameras see through.
         hidden: ``(H, 3, 3)`` floor triangles no camera sees, completed where the room encloses
             them (:func:`splat.floor_cells.enclosed_hidden_cells`).
         plane: ``(4,)`` ``n·x + d = 0`` with ``n`` pointing up, or None when no floor was found.
@@ -88,6 +89,21 @@ def _up_direction(poses_world_cam: np.ndarray) -> np.ndarray:
     return -down / np.linalg.norm(down)
 
 
+def _level_points(
+    points: np.ndarray, up: np.ndarray, max_tilt_deg: float, neighbours: int = 16
+) -> np.ndarray:
+    """The points ``(N, 3)`` whose local surface (the plane of their ``neighbours`` nearest) is
+    within ``max_tilt_deg`` of level: floor and tops, not walls. A level LiDAR's lowest beam draws
+    a ring at one height on every wall round it, which a plane fit alone takes for a floor."""
+    import open3d as o3d
+
+    if len(points) < neighbours:
+        return points
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(neighbours))
+    return points[np.abs(np.asarray(cloud.normals) @ up) > np.cos(np.radians(max_tilt_deg))]
+
+
 def fit_floor_plane(
     mesh: trimesh.Trimesh,
     poses_world_cam: np.ndarray,
@@ -97,7 +113,8 @@ def fit_floor_plane(
 ) -> np.ndarray | None:
     """The floor ``(4,)`` (unit normal up, ``n·x + d = 0``), or None when fewer than ``min_faces``
     faces (ten times as many LiDAR points) support it: a RANSAC plane within ``max_tilt_deg`` of
-    level through the LiDAR points ``(N, 3)`` below every camera when there are enough of them,
+    level through the LiDAR points ``(N, 3)`` below every camera on level surfaces (by their
+    neighbours' plane) when there are enough of them,
     else through the centroids of the mesh's up-facing faces below every camera. The returns come
     first: a TSDF surface seen at grazing angles sits centimetres off the floor, and a warm start's
     floor simplified to a few faces tilts by degrees (3° on a 3 s recording: 17 cm of floor
@@ -107,7 +124,7 @@ def fit_floor_plane(
     level = (up, max_tilt_deg)
     plane, support = np.zeros(4), 0
     if lidar is not None:
-        candidates = lidar[lidar @ up < lowest_camera - 0.1]
+        candidates = _level_points(lidar[lidar @ up < lowest_camera - 0.1], up, max_tilt_deg)
         if len(candidates) >= 10 * min_faces:  # points, noisier than faces
             plane, inliers = ransac_plane(candidates, 0.03, normal_near=level)
             support = len(inliers) // 10
@@ -158,7 +175,9 @@ def ground_fill(
     Rays of every ``pixel_stride``-th pixel of each view (``poses_world_cam`` ``(K, 4, 4)``) that
     hit no warm-start face before the floor plane are intersected with it (within
     ``max_range_m``), unless a wall stands between the camera and the point; each grid cell of
-    ``cell_m`` they land in becomes two triangles. ``lidar`` ``(N, 3)`` refines the plane. With
+    ``cell_m`` they land in becomes two triangles. Where the wall between is in the LiDAR returns
+    only (a hole of the mesh), an upright ``cell_m`` square closes the hole where the sight line
+    meets the returns. ``lidar`` ``(N, 3)`` refines the plane. With
     ``complete_hidden``, the floor no camera sees is completed where the room encloses it (gaps
     up to ``2 * closing_m`` bridged).
     """
@@ -174,7 +193,7 @@ def ground_fill(
     n, d = plane[:3], plane[3]
     grid = PlaneGrid(plane, cell_m)
     columns = ReturnColumns(grid, lidar) if lidar is not None else None
-    hits = []
+    hits, crossings, cameras = [], [], []
     for pose in poses_world_cam:
         origin = pose[:3, 3]
         dirs = rays_cam @ pose[:3, :3].T
@@ -186,9 +205,13 @@ def ground_fill(
         points = origin + t_floor[through_hole, None] * dirs[through_hole]
         behind = _behind_wall(scene, origin, points, n, cell_m)
         if columns is not None:
-            behind |= columns.blocked(origin, points, cell_m)
+            crossed, at = columns.first_crossing(origin, points, cell_m)
+            behind |= crossed
+            crossings.append(at[crossed])
+            cameras.append(np.broadcast_to(origin, at[crossed].shape))
         hits.append(points[~behind])
     points = np.concatenate(hits) if hits else np.zeros((0, 3))
+    walls = _wall_patches(grid, np.concatenate(crossings), np.concatenate(cameras)) if crossings else empty
     seen = np.unique(grid.cells(points), axis=0) if len(points) else np.zeros((0, 2), dtype=np.int64)
     hidden = enclosed_hidden_cells(mesh, grid, seen, closing_m) if complete_hidden else seen[:0]
     reason = (
@@ -196,6 +219,19 @@ def ground_fill(
         if len(seen)
         else "the warm-start mesh covers the floor the cameras see"
     )
+    if len(walls):
+        reason += f"; {len(walls) // 2} upright {cell_m:g} m patches where LiDAR returns close those holes"
     if complete_hidden:
         reason += f"; {len(hidden)} hidden cells completed where the room encloses the floor"
-    return GroundFill(grid.triangles(seen), grid.triangles(hidden), plane, reason)
+    return GroundFill(np.concatenate([grid.triangles(seen), walls]), grid.triangles(hidden), plane, reason)
+
+
+def _wall_patches(grid: PlaneGrid, crossings: np.ndarray, cameras: np.ndarray) -> np.ndarray:
+    """Upright squares ``(2W, 3, 3)``, one per ``grid.cell_m`` cube that sight lines through the
+    warm start's holes cross a column of LiDAR returns in (``crossings`` ``(N, 3)``, seen from
+    ``cameras`` ``(N, 3)``): the wall the camera sees there, facing the first camera that does."""
+    if len(crossings) == 0:
+        return np.zeros((0, 3, 3))
+    cube = np.column_stack([grid.cells(crossings), np.floor(grid.heights(crossings) / grid.cell_m)])
+    _, first = np.unique(cube.astype(np.int64), axis=0, return_index=True)
+    return grid.upright_squares(crossings[first], cameras[first])

@@ -146,7 +146,9 @@ def _camera_poses(positions: list[tuple[float, float, float]]) -> np.ndarray:
 
 def test_the_floor_plane_comes_from_the_returns_not_from_a_tilted_patch_of_mesh():
     """A warm start whose only floor is a small patch tilted by 3° (a simplified TSDF floor seen
-    far ahead) and LiDAR returns on the whole floor: the plane is the returns' level floor."""
+    far ahead) and LiDAR returns on the whole floor and on a wall, with the ring a level LiDAR's
+    lowest beam draws on the wall at 0.25 m (more returns than the floor's): the plane is the
+    returns' level floor."""
     rng = np.random.default_rng(0)
     slab = _box((1.0, 1.0, 0.01), (0, 0, 0))
     patch = trimesh.Trimesh(*trimesh.remesh.subdivide_to_size(slab.vertices, slab.faces, 0.1))
@@ -154,8 +156,9 @@ def test_the_floor_plane_comes_from_the_returns_not_from_a_tilted_patch_of_mesh(
     patch.apply_translation((4.0, 0.0, 0.2))
     floor = np.column_stack([rng.uniform(-4, 8, (4000, 2)), rng.normal(0.0, 0.01, 4000)])
     wall = np.column_stack([np.full(2000, 8.0), rng.uniform(-4, 4, 2000), rng.uniform(0, 2.5, 2000)])
+    ring = np.column_stack([np.full(6000, 8.0), rng.uniform(-4, 4, 6000), rng.normal(0.25, 0.005, 6000)])
     poses = _camera_poses([(0.0, 0.0, 0.45), (1.0, 0.0, 0.45)])
-    plane = fit_floor_plane(patch, poses, np.vstack([floor, wall]))
+    plane = fit_floor_plane(patch, poses, np.vstack([floor, wall, ring]))
     np.testing.assert_allclose(plane[:3], (0, 0, 1), atol=2e-3)
     assert abs(plane[3]) < 0.005
     tilted = fit_floor_plane(patch, poses)  # without returns: the patch is all there is
@@ -182,9 +185,23 @@ def test_returns_of_a_wall_block_the_sight_of_the_floor_behind_it():
     columns = ReturnColumns(PlaneGrid(FLOOR, 0.15), np.vstack([wall, floor, ceiling]))
     origin = np.array([0.0, 0.0, 0.45])
     targets = np.array([[1.0, 0.0, 0.0], [2.5, 0.5, 0.0], [3.5, 0.0, 0.0], [5.0, -1.0, 0.0]])
-    np.testing.assert_array_equal(columns.blocked(origin, targets, 0.15), [False, False, True, True])
+    crossed, at = columns.first_crossing(origin, targets, 0.15)
+    np.testing.assert_array_equal(crossed, [False, False, True, True])
+    # Where the sight line meets the wall: at x = 3 (within a cell), at the line's height there.
+    np.testing.assert_allclose(at[2], [3.0, 0.0, 0.45 * (1 - 3.0 / 3.5)], atol=0.15)
+    squares = PlaneGrid(FLOOR, 0.15).upright_squares(at[2:3], origin[None])
+    normal = np.cross(squares[0, 1] - squares[0, 0], squares[0, 2] - squares[0, 0])
+    assert squares.shape == (2, 3, 3) and abs(normal[2]) < 1e-9 and abs(normal[0]) > 0  # upright, facing x
     open_room = ReturnColumns(PlaneGrid(FLOOR, 0.15), np.vstack([floor, ceiling]))
-    assert not open_room.blocked(origin, targets, 0.15).any()
+    assert not open_room.first_crossing(origin, targets, 0.15)[0].any()
+    # A table top at 0.74 m over x = 1.5-2.5: the camera at 0.45 m sees the floor under and past it.
+    table = np.column_stack([rng.uniform(1.5, 2.5, 2000), rng.uniform(-1, 1, 2000), np.full(2000, 0.74)])
+    under_table = ReturnColumns(PlaneGrid(FLOOR, 0.15), np.vstack([table, floor, ceiling]))
+    assert not under_table.first_crossing(origin, targets[:2], 0.15)[0].any()
+    # Seen from 1.4 m (hand-held), the sight line to the floor at x = 4 m crosses the table top.
+    high = np.array([0.0, 0.0, 1.4])
+    beyond = np.array([[4.0, 0.0, 0.0]])
+    np.testing.assert_array_equal(under_table.first_crossing(high, beyond, 0.15)[0], [True])
 
 
 def test_one_steep_face_of_a_noisy_ceiling_is_not_a_wall():
