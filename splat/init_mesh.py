@@ -177,9 +177,9 @@ def ground_fill(
     ``max_range_m``), unless a wall stands between the camera and the point; each grid cell of
     ``cell_m`` they land in becomes two triangles. Where the wall between is in the LiDAR returns
     only (a hole of the mesh), an upright ``cell_m`` square closes the hole where the sight line
-    meets the returns. ``lidar`` ``(N, 3)`` refines the plane. With
-    ``complete_hidden``, the floor no camera sees is completed where the room encloses it (gaps
-    up to ``2 * closing_m`` bridged).
+    meets the returns. ``lidar`` ``(N, 3)``: the returns the plane is fitted to and the walls are
+    found in (without them, the mesh's faces alone). With ``complete_hidden``, the floor no camera
+    sees is completed where the room encloses it (gaps up to ``2 * closing_m`` bridged).
     """
     empty = np.zeros((0, 3, 3))
     plane = fit_floor_plane(mesh, poses_world_cam, lidar)
