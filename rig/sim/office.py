@@ -37,7 +37,9 @@ from rig.transforms import make_transform
 OFFICE_SIZE = (9.0, 7.0, 2.8)
 #: The hand-held rig's loop between the furniture (x, y).
 OFFICE_PATH = ((2.0, 2.0), (4.5, 1.8), (7.0, 2.0), (7.3, 3.5), (7.0, 5.0), (4.5, 5.3), (2.0, 5.0), (1.7, 3.5))
+#: The materials book covers are drawn from.
 BOOK_MATERIALS = ("paint_red", "paint_blue", "paint_white", "cardboard", "fabric", "wood")
+#: Height of desk and table tops (m).
 DESK_HEIGHT = 0.74
 
 
@@ -207,7 +209,9 @@ def wall_picture(
     corner: tuple[float, float, float], wall: str, material: str, size: float = 0.8
 ) -> SceneMesh:
     """A 2 cm deep picture on the wall ``x0`` (x = 0) or ``y1`` (y = 7) whose lower left corner, as
-    seen from the room, is ``corner``; corners on multiples of ``size`` show the picture once."""
+    seen from the room, is ``corner``. Textures are laid in world coordinates: a corner on multiples
+    of ``size`` shows the picture once, another a wrapped part of it (the office's pictures hang
+    at 1.2 m, so they show the lower half of their picture above the upper half)."""
     x, y, z = corner
     if wall == "x0":
         return box((0.02, size, size), (0.01, y + size / 2, z + size / 2), material)
