@@ -33,7 +33,8 @@ def detect_import_format(source: Path, explicit_files: bool = False) -> str:
     if _holds_one_mesh_and_one_trajectory(source):
         return "generic"
     raise InputError(
-        f"cannot tell which mapper wrote this folder; give --format ({', '.join(IMPORT_FORMATS)})",
+        "cannot tell which mapper wrote this folder; name it with lts slam import --format "
+        f"({', '.join(IMPORT_FORMATS)}), whose output lts reconstruct --slam takes",
         path=source,
     )
 

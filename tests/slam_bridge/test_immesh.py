@@ -134,7 +134,7 @@ def test_pin_slam_folder_is_detected_and_imported(tmp_path: Path) -> None:
         text=True,
         timeout=120,
     )
-    assert unknown.returncode == 2 and "give --format" in unknown.stderr
+    assert unknown.returncode == 2 and "lts slam import --format" in unknown.stderr
 
 
 # --- ImMesh bags: /aft_mapped_to_init (nav_msgs/Odometry) and /cloud_registered (PointCloud2) ---
