@@ -14,9 +14,14 @@ MESH_SUFFIXES = (".ply", ".obj", ".glb", ".off", ".stl")
 TRAJECTORY_SUFFIXES = (".txt", ".tum", ".csv", ".log")
 
 
+def files_with_suffix(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
+    """The files in ``folder`` (recursively) with one of ``suffixes`` (any case), sorted."""
+    return sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix.lower() in suffixes)
+
+
 def find_single(folder: Path, suffixes: tuple[str, ...], what: str) -> Path:
     """The one file in ``folder`` (recursively) with one of ``suffixes``, else a clear error."""
-    found = sorted(p for p in folder.rglob("*") if p.is_file() and p.suffix.lower() in suffixes)
+    found = files_with_suffix(folder, suffixes)
     if len(found) != 1:
         names = ", ".join(str(p.relative_to(folder)) for p in found[:5]) or "none"
         raise InputError(

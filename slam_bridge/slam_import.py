@@ -42,13 +42,9 @@ def detect_import_format(source: Path, explicit_files: bool = False) -> str:
 def _holds_one_mesh_and_one_trajectory(folder: Path) -> bool:
     """``folder`` (recursively) holds one mesh file and one trajectory file, as a generic import
     (or the SLAM folder ``lts slam run`` and ``lts slam import`` write) does."""
-    from slam_bridge.generic import MESH_SUFFIXES, TRAJECTORY_SUFFIXES
+    from slam_bridge.generic import MESH_SUFFIXES, TRAJECTORY_SUFFIXES, files_with_suffix
 
-    files = [p for p in folder.rglob("*") if p.is_file()]
-    return all(
-        sum(p.suffix.lower() in suffixes for p in files) == 1
-        for suffixes in (MESH_SUFFIXES, TRAJECTORY_SUFFIXES)
-    )
+    return all(len(files_with_suffix(folder, s)) == 1 for s in (MESH_SUFFIXES, TRAJECTORY_SUFFIXES))
 
 
 def import_slam_output(
