@@ -108,8 +108,8 @@ def shell(
     size: tuple[float, float, float], walls: str, floor: str = "tiles", ceiling: str = "ceiling"
 ) -> SceneMesh:
     """Inward-facing box from (0, 0, 0) to ``size``: floor, ceiling and four walls."""
-    solid = trimesh.creation.box(extents=size, transform=make_transform(np.eye(3), np.asarray(size) / 2))
-    mesh = trimesh.Trimesh(solid.vertices, solid.faces[:, ::-1])  # reversed winding: normals point in
+    outward = trimesh.creation.box(extents=size, transform=make_transform(np.eye(3), np.asarray(size) / 2))
+    mesh = trimesh.Trimesh(outward.vertices, outward.faces[:, ::-1])  # reversed winding: normals point in
     nz = mesh.face_normals[:, 2]
     material = np.where(
         nz > 0.5, MATERIAL_IDS[floor], np.where(nz < -0.5, MATERIAL_IDS[ceiling], MATERIAL_IDS[walls])
