@@ -50,6 +50,16 @@ class TrainConfig(BaseModel):
         description="one triangle at each of the scene's sparse points no LiDAR return explains (what "
         "the camera sees beyond the LiDAR's field or range; splat.camera_only); needs sparse points",
     )
+    lidar_fill: bool = Field(
+        True,
+        description="one triangle per 0.25 m voxel of the LiDAR returns no warm-start face lies near "
+        "(holes of the mapper's mesh; splat.lidar_fill)",
+    )
+    upward_extension: bool = Field(
+        True,
+        description="upright surfaces at the topmost LiDAR returns continued up to the image top as "
+        "camera-only cells (facades and poles above the LiDAR's field; splat.upward_extension)",
+    )
     lidar_init_points: int = Field(2_000, ge=4, description="as many as the SfM points TS+ starts from")
 
     # Loss weights (Eq. 3): (1-λ) L1 + λ D-SSIM + β1 opacity + β2 normal + β3 depth + β4 distortion.

@@ -82,7 +82,7 @@ class GroundFill:
     reason: str
 
 
-def _up_direction(poses_world_cam: np.ndarray) -> np.ndarray:
+def up_direction(poses_world_cam: np.ndarray) -> np.ndarray:
     """Approximate world up ``(3,)``: minus the mean camera y axis (OpenCV y points down); off by
     the cameras' mean pitch, hence the generous tilt tolerance of the floor search."""
     down = poses_world_cam[:, :3, 1].mean(axis=0)
@@ -119,7 +119,7 @@ def fit_floor_plane(
     first: a TSDF surface seen at grazing angles sits centimetres off the floor, and a warm start's
     floor simplified to a few faces tilts by degrees (3° on a 3 s recording: 17 cm of floor
     below the truth under its first camera)."""
-    up = _up_direction(poses_world_cam)
+    up = up_direction(poses_world_cam)
     lowest_camera = float((poses_world_cam[:, :3, 3] @ up).min())
     level = (up, max_tilt_deg)
     plane, support = np.zeros(4), 0

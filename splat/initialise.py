@@ -16,10 +16,12 @@ from slam_bridge.scene import Keyframe, Scene
 from splat.background import constant_background
 from splat.camera_only import camera_only_seeds
 from splat.config import TrainConfig
-from splat.init_mesh import decouple_and_scale, ground_fill, simplify
+from splat.init_mesh import decouple_and_scale, ground_fill, simplify, up_direction
+from splat.lidar_fill import lidar_fill
 from splat.lidar_points import lidar_points
 from splat.lidar_snap import snap_to_lidar
 from splat.model import TriangleModel
+from splat.upward_extension import upward_extension
 from splat.views import View
 
 GREY = 0.5
@@ -61,20 +63,30 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
     mesh = trimesh.Trimesh(vertices, mesh.faces, process=False)
     triangles = decouple_and_scale(mesh.vertices, np.asarray(mesh.faces), config.init_scale)
     lidar = lidar_points(scene, train)
+    poses = np.stack([k.T_world_cam for k in train])
+    up = up_direction(poses)
+    depths = [scene.depth(k) for k in train]
+    if config.lidar_fill:
+        fill_returns = lidar_fill(mesh, lidar, poses[:, :3, 3])
+        notes.append(fill_returns.reason)
+        triangles = np.concatenate([triangles, fill_returns.triangles])
     if config.ground_fill:
-        poses = np.stack([k.T_world_cam for k in train])
         complete = config.complete_hidden_floor
         fill = ground_fill(mesh, scene.camera, poses, lidar, config.ground_cell_m, complete_hidden=complete)
         notes.append(fill.reason)
         # Seen cells are scaled like the mesh faces, to overlap while they train; hidden ones never
         # train, so they keep their size (scaled, they would reach past the walls).
         triangles = np.concatenate([triangles, _scaled(fill.triangles, config.init_scale), fill.hidden])
+        up = up if fill.plane is None else fill.plane[:3]
+    if config.upward_extension:
+        extension = upward_extension(scene.camera, poses, [scene.lidar(k) for k in train], up, mesh)
+        notes.append(extension.reason)
+        triangles = np.concatenate([triangles, _scaled(extension.triangles, config.init_scale)])
     colors = None if config.init_color == "project" else np.full_like(triangles, GREY)
     if config.camera_only_seeds and scene.sparse_points_path is None:
         notes.append("no camera-only triangles: the scene has no sparse points (lts prepare --sparse-points)")
     elif config.camera_only_seeds:
         points, point_colors = scene.sparse_points()
-        poses, depths = np.stack([k.T_world_cam for k in train]), [scene.depth(k) for k in train]
         seeds = camera_only_seeds(points, point_colors, lidar, scene.camera, poses, depths)
         notes.append(seeds.reason)
         triangles = np.concatenate([triangles, seeds.triangles])

@@ -1,0 +1,89 @@
+"""LiDAR returns the warm start misses, filled with one small triangle each.
+
+A mapper's mesh does not cover every return its keyframes recorded: a TSDF needs several
+consistent observations of a voxel, so facades seen at a grazing angle and the far road between
+a spinning LiDAR's widening rings come out as holes, and simplifying the mesh to the training
+budget opens more. On the virtual street a third of the training keyframes' returns lay more than
+10 cm from the warm start, and those pixels rendered black. Each voxel of such returns gets one
+triangle in the plane of its neighbouring returns (open3d's normals), as large as the gaps to its
+neighbours; training then treats it like a warm-start face.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import open3d as o3d
+import trimesh
+from scipy.spatial import cKDTree
+
+from rig.mesh_rays import mesh_raycaster
+from splat.camera_only import facing_triangles
+
+#: A return is explained by the warm start within the larger of this distance (m) and this
+#: fraction of its range from the nearest camera.
+EXPLAINED_MIN_M = 0.1
+EXPLAINED_FRACTION = 0.02
+#: Unexplained returns are thinned to one per voxel of this side (m).
+VOXEL_M = 0.25
+#: Returns whose plane is estimated from this many neighbours within this many voxels.
+NORMAL_NEIGHBOURS = 16
+NORMAL_RADIUS_VOXELS = 4.0
+#: A triangle's circumradius: the mean distance to its nearest filled neighbours times this
+#: (equilateral triangles of the gap's radius leave gaps between them), within [1, 3] voxels.
+SIZE_NEIGHBOURS = 3
+SIZE_FACTOR = 1.5
+
+
+@dataclass(frozen=True)
+class LidarFill:
+    """Triangles ``(T, 3, 3)`` at the ``T`` voxels of the ``n_unexplained`` of ``n_returns`` LiDAR
+    returns that no warm-start face lies near."""
+
+    triangles: np.ndarray
+    n_unexplained: int
+    n_returns: int
+
+    @property
+    def reason(self) -> str:
+        share = self.n_unexplained / max(self.n_returns, 1)
+        return (
+            f"{len(self.triangles)} triangles fill the LiDAR returns the warm start misses "
+            f"({100 * share:.1f} % of {self.n_returns}, thinned to {VOXEL_M:g} m voxels)"
+        )
+
+
+def unexplained_returns(mesh: trimesh.Trimesh, points: np.ndarray, camera_centres: np.ndarray) -> np.ndarray:
+    """``(N,)`` bool: the returns ``points`` ``(N, 3)`` farther from ``mesh`` than
+    max(:data:`EXPLAINED_MIN_M`, :data:`EXPLAINED_FRACTION` × their distance to the nearest camera
+    centre of ``camera_centres`` ``(K, 3)``)."""
+    if len(points) == 0:
+        return np.zeros(0, dtype=bool)
+    if len(mesh.faces) == 0:
+        return np.ones(len(points), dtype=bool)
+    raycaster = mesh_raycaster(mesh)
+    distance = raycaster.compute_distance(o3d.core.Tensor(points.astype(np.float32))).numpy()
+    reach = cKDTree(camera_centres).query(points)[0]
+    return distance > np.maximum(EXPLAINED_MIN_M, EXPLAINED_FRACTION * reach)
+
+
+def lidar_fill(mesh: trimesh.Trimesh, points: np.ndarray, camera_centres: np.ndarray) -> LidarFill:
+    """One triangle per :data:`VOXEL_M` voxel of the LiDAR returns ``points`` ``(N, 3)`` that ``mesh``
+    does not explain (:func:`unexplained_returns`; cameras at ``camera_centres`` ``(K, 3)``), in the
+    plane of the neighbouring returns, its circumradius :data:`SIZE_FACTOR` times the mean gap to
+    its :data:`SIZE_NEIGHBOURS` nearest voxels."""
+    unexplained = unexplained_returns(mesh, points, camera_centres)
+    empty = LidarFill(np.zeros((0, 3, 3)), int(unexplained.sum()), len(points))
+    if unexplained.sum() < SIZE_NEIGHBOURS + 1:
+        return empty
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points[unexplained].astype(np.float64)))
+    cloud = cloud.voxel_down_sample(VOXEL_M)
+    radius = NORMAL_RADIUS_VOXELS * VOXEL_M
+    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=NORMAL_NEIGHBOURS))
+    centres, normals = np.asarray(cloud.points), np.asarray(cloud.normals)
+    if len(centres) < SIZE_NEIGHBOURS + 1:
+        return empty
+    gaps = cKDTree(centres).query(centres, k=SIZE_NEIGHBOURS + 1)[0][:, 1:].mean(axis=1)
+    radii = np.clip(SIZE_FACTOR * gaps, VOXEL_M, 3 * VOXEL_M)
+    return LidarFill(facing_triangles(centres, normals, radii), int(unexplained.sum()), len(points))
