@@ -18,7 +18,7 @@ from splat.camera_only import camera_only_seeds
 from splat.config import TrainConfig
 from splat.init_mesh import decouple_and_scale, ground_fill, simplify, up_direction
 from splat.lidar_fill import lidar_fill
-from splat.lidar_points import lidar_points
+from splat.lidar_points import keyframe_lidar_points, lidar_points
 from splat.lidar_snap import snap_to_lidar
 from splat.model import TriangleModel
 from splat.upward_extension import upward_extension
@@ -62,12 +62,13 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         notes.append(snap.reason)
     mesh = trimesh.Trimesh(vertices, mesh.faces, process=False)
     triangles = decouple_and_scale(mesh.vertices, np.asarray(mesh.faces), config.init_scale)
-    lidar = lidar_points(scene, train)
+    per_keyframe = keyframe_lidar_points(scene, train)
+    lidar = np.concatenate(per_keyframe)
     poses = np.stack([k.T_world_cam for k in train])
     up = up_direction(poses)
     depths = [scene.depth(k) for k in train]
     if config.lidar_fill:
-        fill_returns = lidar_fill(mesh, lidar, poses[:, :3, 3])
+        fill_returns = lidar_fill(mesh, per_keyframe, poses[:, :3, 3])
         notes.append(fill_returns.reason)
         triangles = np.concatenate([triangles, fill_returns.triangles])
     if config.ground_fill:

@@ -4,9 +4,15 @@ A mapper's mesh does not cover every return its keyframes recorded: a TSDF needs
 consistent observations of a voxel, so facades seen at a grazing angle and the far road between
 a spinning LiDAR's widening rings come out as holes, and simplifying the mesh to the training
 budget opens more. On the virtual street a third of the training keyframes' returns lay more than
-10 cm from the warm start, and those pixels rendered black. Each voxel of such returns gets one
-triangle in the plane of its neighbouring returns (open3d's normals), as large as the gaps to its
-neighbours; training then treats it like a warm-start face.
+10 cm from the warm start, and those pixels rendered black. Each voxel of such returns that
+enough keyframes hold gets one triangle in the plane of its neighbouring returns (open3d's
+normals), as large as the gaps to its neighbours; training then treats it like a warm-start face.
+
+The keyframe count keeps vehicles out: a car the moving-point detection missed (one driving
+ahead at the robot's speed is seldom seen through) leaves its returns at a new place in every
+sweep, so a voxel of it is held by the one or two keyframes whose windows share that sweep, while
+the mapper's TSDF had already carved it away. Without the count, the fill put 450 m² of
+triangles inside the virtual street's vehicles' swept volumes.
 """
 
 from __future__ import annotations
@@ -25,8 +31,10 @@ from splat.camera_only import facing_triangles
 #: fraction of its range from the nearest camera.
 EXPLAINED_MIN_M = 0.1
 EXPLAINED_FRACTION = 0.02
-#: Unexplained returns are thinned to one per voxel of this side (m).
+#: Unexplained returns are thinned to one per voxel of this side (m), kept where at least
+#: MIN_KEYFRAMES keyframes hold one in the voxel (neighbouring keyframes share a sweep).
 VOXEL_M = 0.25
+MIN_KEYFRAMES = 3
 #: Returns whose plane is estimated from this many neighbours within this many voxels.
 NORMAL_NEIGHBOURS = 16
 NORMAL_RADIUS_VOXELS = 4.0
@@ -39,18 +47,21 @@ SIZE_FACTOR = 1.5
 @dataclass(frozen=True)
 class LidarFill:
     """Triangles ``(T, 3, 3)`` at the ``T`` voxels of the ``n_unexplained`` of ``n_returns`` LiDAR
-    returns that no warm-start face lies near."""
+    returns that no warm-start face lies near, of ``n_voxels`` voxels (the others held by fewer
+    than :data:`MIN_KEYFRAMES` keyframes)."""
 
     triangles: np.ndarray
     n_unexplained: int
     n_returns: int
+    n_voxels: int
 
     @property
     def reason(self) -> str:
         share = self.n_unexplained / max(self.n_returns, 1)
         return (
             f"{len(self.triangles)} triangles fill the LiDAR returns the warm start misses "
-            f"({100 * share:.1f} % of {self.n_returns}, thinned to {VOXEL_M:g} m voxels)"
+            f"({100 * share:.1f} % of {self.n_returns}, in {self.n_voxels} voxels of {VOXEL_M:g} m; "
+            f"{self.n_voxels - len(self.triangles)} held by fewer than {MIN_KEYFRAMES} keyframes left out)"
         )
 
 
@@ -68,22 +79,39 @@ def unexplained_returns(mesh: trimesh.Trimesh, points: np.ndarray, camera_centre
     return distance > np.maximum(EXPLAINED_MIN_M, EXPLAINED_FRACTION * reach)
 
 
-def lidar_fill(mesh: trimesh.Trimesh, points: np.ndarray, camera_centres: np.ndarray) -> LidarFill:
-    """One triangle per :data:`VOXEL_M` voxel of the LiDAR returns ``points`` ``(N, 3)`` that ``mesh``
-    does not explain (:func:`unexplained_returns`; cameras at ``camera_centres`` ``(K, 3)``), in the
-    plane of the neighbouring returns, its circumradius :data:`SIZE_FACTOR` times the mean gap to
-    its :data:`SIZE_NEIGHBOURS` nearest voxels."""
+def _held_voxels(points: np.ndarray, keyframe: np.ndarray) -> np.ndarray:
+    """One point ``(V, 3)`` per :data:`VOXEL_M` voxel of ``points`` ``(N, 3)`` (the mean of the voxel's
+    points) that at least :data:`MIN_KEYFRAMES` distinct ``keyframe`` ids ``(N,)`` hold."""
+    keys = np.floor(points / VOXEL_M).astype(np.int64)
+    _, voxel, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    voxel = voxel.ravel()
+    pairs = np.unique(np.column_stack([voxel, keyframe]), axis=0)
+    held = np.bincount(pairs[:, 0], minlength=len(count)) >= MIN_KEYFRAMES
+    sums = np.stack(
+        [np.bincount(voxel, weights=points[:, i], minlength=len(count)) for i in range(3)], axis=1
+    )
+    return (sums / count[:, None])[held]
+
+
+def lidar_fill(
+    mesh: trimesh.Trimesh, keyframe_points: list[np.ndarray], camera_centres: np.ndarray
+) -> LidarFill:
+    """One triangle per :data:`VOXEL_M` voxel of the keyframes' LiDAR returns ``keyframe_points``
+    (world ``(N_k, 3)`` each) that ``mesh`` does not explain (:func:`unexplained_returns`; cameras at
+    ``camera_centres`` ``(K, 3)``) and that :data:`MIN_KEYFRAMES` keyframes hold, in the plane of
+    the neighbouring voxels, its circumradius :data:`SIZE_FACTOR` times the mean gap to its
+    :data:`SIZE_NEIGHBOURS` nearest voxels."""
+    points = np.concatenate(keyframe_points) if keyframe_points else np.zeros((0, 3))
+    keyframe = np.repeat(np.arange(len(keyframe_points)), [len(p) for p in keyframe_points])
     unexplained = unexplained_returns(mesh, points, camera_centres)
-    empty = LidarFill(np.zeros((0, 3, 3)), int(unexplained.sum()), len(points))
-    if unexplained.sum() < SIZE_NEIGHBOURS + 1:
-        return empty
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points[unexplained].astype(np.float64)))
-    cloud = cloud.voxel_down_sample(VOXEL_M)
+    n_voxels = len(np.unique(np.floor(points[unexplained] / VOXEL_M).astype(np.int64), axis=0))
+    centres = _held_voxels(points[unexplained], keyframe[unexplained])
+    if len(centres) < SIZE_NEIGHBOURS + 1:
+        return LidarFill(np.zeros((0, 3, 3)), int(unexplained.sum()), len(points), n_voxels)
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(centres))
     radius = NORMAL_RADIUS_VOXELS * VOXEL_M
     cloud.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=NORMAL_NEIGHBOURS))
-    centres, normals = np.asarray(cloud.points), np.asarray(cloud.normals)
-    if len(centres) < SIZE_NEIGHBOURS + 1:
-        return empty
+    normals = np.asarray(cloud.normals)
     gaps = cKDTree(centres).query(centres, k=SIZE_NEIGHBOURS + 1)[0][:, 1:].mean(axis=1)
     radii = np.clip(SIZE_FACTOR * gaps, VOXEL_M, 3 * VOXEL_M)
-    return LidarFill(facing_triangles(centres, normals, radii), int(unexplained.sum()), len(points))
+    return LidarFill(facing_triangles(centres, normals, radii), int(unexplained.sum()), len(points), n_voxels)

@@ -8,8 +8,13 @@ from rig.transforms import transform_points
 from slam_bridge.scene import Keyframe, Scene
 
 
-def lidar_points(scene: Scene, keyframes: list[Keyframe]) -> np.ndarray:
-    """World points ``(N, 3)`` of the LiDAR returns each of ``keyframes`` sees (one per pixel; each
+def keyframe_lidar_points(scene: Scene, keyframes: list[Keyframe]) -> list[np.ndarray]:
+    """World points ``(N_k, 3)`` of the LiDAR returns each of ``keyframes`` sees (one per pixel; each
     keyframe holds the deskewed scans around it, so neighbours overlap)."""
-    chunks = [transform_points(k.T_world_cam, scene.lidar(k).points) for k in keyframes]
+    return [transform_points(k.T_world_cam, scene.lidar(k).points) for k in keyframes]
+
+
+def lidar_points(scene: Scene, keyframes: list[Keyframe]) -> np.ndarray:
+    """:func:`keyframe_lidar_points` of ``keyframes`` together ``(N, 3)``."""
+    chunks = keyframe_lidar_points(scene, keyframes)
     return np.concatenate(chunks) if chunks else np.zeros((0, 3))

@@ -1,7 +1,7 @@
 import numpy as np
 import trimesh
 
-from splat.lidar_fill import EXPLAINED_MIN_M, VOXEL_M, lidar_fill, unexplained_returns
+from splat.lidar_fill import EXPLAINED_MIN_M, MIN_KEYFRAMES, VOXEL_M, lidar_fill, unexplained_returns
 
 CAMERAS = np.array([[0.0, 0.0, 1.6]])
 
@@ -28,9 +28,14 @@ def test_returns_on_the_mesh_are_explained_and_the_others_are_not():
     assert not unexplained_returns(_road_mesh(), near, CAMERAS).any()
 
 
+def _held_by(points: np.ndarray, n_keyframes: int) -> list[np.ndarray]:
+    """``points`` split between ``n_keyframes`` keyframes, every one holding each part of the scene."""
+    return [points[k::n_keyframes] for k in range(n_keyframes)]
+
+
 def test_the_wall_the_mesh_misses_is_filled_in_its_plane():
     road, wall = _returns()
-    fill = lidar_fill(_road_mesh(), np.concatenate([road, wall]), CAMERAS)
+    fill = lidar_fill(_road_mesh(), _held_by(np.concatenate([road, wall]), MIN_KEYFRAMES), CAMERAS)
     assert fill.n_unexplained == len(wall) and fill.n_returns == len(road) + len(wall)
     corners = fill.triangles.reshape(-1, 3)
     np.testing.assert_allclose(corners[:, 0], 10.0, atol=0.02)  # in the wall's plane
@@ -45,5 +50,15 @@ def test_the_wall_the_mesh_misses_is_filled_in_its_plane():
 
 def test_nothing_is_added_where_the_mesh_explains_every_return():
     road, _ = _returns()
-    fill = lidar_fill(_road_mesh(), road, CAMERAS)
+    fill = lidar_fill(_road_mesh(), _held_by(road, MIN_KEYFRAMES), CAMERAS)
     assert len(fill.triangles) == 0 and fill.n_unexplained == 0
+
+
+def test_returns_too_few_keyframes_hold_are_not_filled():
+    """A car moving with the robot lies somewhere else in every sweep: each keyframe alone holds it."""
+    road, wall = _returns()
+    car = [wall[k::5] + np.array([1.5 * k, 0.0, 0.0]) for k in range(5)]  # 1.5 m further in each keyframe
+    keyframes = [np.concatenate([road[k::5], part]) for k, part in enumerate(car)]
+    fill = lidar_fill(_road_mesh(), keyframes, CAMERAS)
+    assert fill.n_unexplained == len(wall) and fill.n_voxels > 0
+    assert len(fill.triangles) == 0
