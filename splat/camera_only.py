@@ -59,12 +59,22 @@ class CameraOnlySeeds:
         )
 
 
+def explained_radius(
+    points: np.ndarray,
+    camera_centres: np.ndarray,
+    min_m: float = EXPLAINED_MIN_M,
+    fraction: float = EXPLAINED_FRACTION,
+) -> np.ndarray:
+    """``(N,)`` max(``min_m``, ``fraction`` × the distance of each of ``points`` ``(N, 3)`` to the
+    nearest of ``camera_centres`` ``(K, 3)``): how near a surface must lie to explain a point whose
+    position error grows with its depth."""
+    return np.maximum(min_m, fraction * cKDTree(camera_centres).query(points)[0])
+
+
 def unexplained_points(points: np.ndarray, lidar: np.ndarray, camera_centres: np.ndarray) -> np.ndarray:
     """``(N,)`` bool: the sparse points ``(N, 3)`` with no LiDAR point of ``lidar`` ``(M, 3)`` within
-    max(:data:`EXPLAINED_MIN_M`, :data:`EXPLAINED_FRACTION` × their distance to the nearest camera
-    centre of ``camera_centres`` ``(K, 3)``)."""
-    depth = cKDTree(camera_centres).query(points)[0]
-    radius = np.maximum(EXPLAINED_MIN_M, EXPLAINED_FRACTION * depth)
+    their :func:`explained_radius` (cameras at ``camera_centres`` ``(K, 3)``)."""
+    radius = explained_radius(points, camera_centres)
     if len(lidar) == 0:
         return np.ones(len(points), dtype=bool)
     nearest = cKDTree(lidar).query(points, distance_upper_bound=float(radius.max()) + 1e-9)[0]

@@ -25,7 +25,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from rig.mesh_rays import mesh_raycaster
-from splat.camera_only import facing_triangles
+from splat.camera_only import explained_radius, facing_triangles
 
 #: A return is explained by the warm start within the larger of this distance (m) and this
 #: fraction of its range from the nearest camera.
@@ -66,17 +66,16 @@ class LidarFill:
 
 
 def unexplained_returns(mesh: trimesh.Trimesh, points: np.ndarray, camera_centres: np.ndarray) -> np.ndarray:
-    """``(N,)`` bool: the returns ``points`` ``(N, 3)`` farther from ``mesh`` than
-    max(:data:`EXPLAINED_MIN_M`, :data:`EXPLAINED_FRACTION` × their distance to the nearest camera
-    centre of ``camera_centres`` ``(K, 3)``)."""
+    """``(N,)`` bool: the returns ``points`` ``(N, 3)`` farther from ``mesh`` than their
+    :func:`~splat.camera_only.explained_radius` of max(:data:`EXPLAINED_MIN_M`,
+    :data:`EXPLAINED_FRACTION` × their distance to the nearest of ``camera_centres`` ``(K, 3)``)."""
     if len(points) == 0:
         return np.zeros(0, dtype=bool)
     if len(mesh.faces) == 0:
         return np.ones(len(points), dtype=bool)
     raycaster = mesh_raycaster(mesh)
     distance = raycaster.compute_distance(o3d.core.Tensor(points.astype(np.float32))).numpy()
-    reach = cKDTree(camera_centres).query(points)[0]
-    return distance > np.maximum(EXPLAINED_MIN_M, EXPLAINED_FRACTION * reach)
+    return distance > explained_radius(points, camera_centres, EXPLAINED_MIN_M, EXPLAINED_FRACTION)
 
 
 def _held_voxels(points: np.ndarray, keyframe: np.ndarray) -> np.ndarray:
