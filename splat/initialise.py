@@ -66,7 +66,6 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
     lidar = np.concatenate(per_keyframe)
     poses = np.stack([k.T_world_cam for k in train])
     up = up_direction(poses)
-    depths = [scene.depth(k) for k in train]
     if config.lidar_fill:
         fill_returns = lidar_fill(mesh, per_keyframe, poses[:, :3, 3])
         notes.append(fill_returns.reason)
@@ -88,6 +87,7 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         notes.append("no camera-only triangles: the scene has no sparse points (lts prepare --sparse-points)")
     elif config.camera_only_seeds:
         points, point_colors = scene.sparse_points()
+        depths = [scene.depth(k) for k in train]
         seeds = camera_only_seeds(points, point_colors, lidar, scene.camera, poses, depths)
         notes.append(seeds.reason)
         triangles = np.concatenate([triangles, seeds.triangles])

@@ -78,9 +78,10 @@ def unexplained_returns(mesh: trimesh.Trimesh, points: np.ndarray, camera_centre
     return distance > explained_radius(points, camera_centres, EXPLAINED_MIN_M, EXPLAINED_FRACTION)
 
 
-def _held_voxels(points: np.ndarray, keyframe: np.ndarray) -> np.ndarray:
+def _held_voxels(points: np.ndarray, keyframe: np.ndarray) -> tuple[np.ndarray, int]:
     """One point ``(V, 3)`` per :data:`VOXEL_M` voxel of ``points`` ``(N, 3)`` (the mean of the voxel's
-    points) that at least :data:`MIN_KEYFRAMES` distinct ``keyframe`` ids ``(N,)`` hold."""
+    points) that at least :data:`MIN_KEYFRAMES` distinct ``keyframe`` ids ``(N,)`` hold, and the
+    number of voxels ``points`` occupy."""
     keys = np.floor(points / VOXEL_M).astype(np.int64)
     _, voxel, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
     voxel = voxel.ravel()
@@ -89,7 +90,7 @@ def _held_voxels(points: np.ndarray, keyframe: np.ndarray) -> np.ndarray:
     sums = np.stack(
         [np.bincount(voxel, weights=points[:, i], minlength=len(count)) for i in range(3)], axis=1
     )
-    return (sums / count[:, None])[held]
+    return (sums / count[:, None])[held], len(count)
 
 
 def lidar_fill(
@@ -103,8 +104,7 @@ def lidar_fill(
     points = np.concatenate(keyframe_points) if keyframe_points else np.zeros((0, 3))
     keyframe = np.repeat(np.arange(len(keyframe_points)), [len(p) for p in keyframe_points])
     unexplained = unexplained_returns(mesh, points, camera_centres)
-    n_voxels = len(np.unique(np.floor(points[unexplained] / VOXEL_M).astype(np.int64), axis=0))
-    centres = _held_voxels(points[unexplained], keyframe[unexplained])
+    centres, n_voxels = _held_voxels(points[unexplained], keyframe[unexplained])
     if len(centres) < SIZE_NEIGHBOURS + 1:
         return LidarFill(np.zeros((0, 3, 3)), int(unexplained.sum()), len(points), n_voxels)
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(centres))

@@ -168,7 +168,8 @@ def upward_extension(
     quads, side = np.concatenate(cells), np.concatenate(sizes)
     centres = quads.mean(axis=1)
     _, first = np.unique(np.floor(centres / np.median(side)).astype(np.int64), axis=0, return_index=True)
-    quads, centres = quads[np.sort(first)], centres[np.sort(first)]
+    kept = np.sort(first)
+    quads, centres = quads[kept], centres[kept]
     through = seen_through(centres, camera, poses_world_cam, [lidar.depth() for lidar in lidars])
     quads = quads[~through]
     triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
