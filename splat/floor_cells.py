@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 #: Structure taller than this above the floor is a wall: no floor is completed under it.
 WALL_HEIGHT_M = 1.8
@@ -26,6 +27,8 @@ MIN_WALL_SAMPLES = 3
 FLOOR_CLEARANCE_M = 0.1
 #: A column of returns this tall stands on the floor (a wall, a box), one shorter may not (a table top).
 STANDING_SPAN_M = 0.4
+#: Returns within this of the floor plane are ground the LiDAR saw: the floor, a kerb, a pavement.
+GROUND_BAND_M = 0.3
 
 
 @dataclass(frozen=True)
@@ -47,6 +50,15 @@ class PlaneGrid:
         """Integer cell coordinates ``(N, 2)`` of points ``(N, 3)`` projected onto the plane."""
         u, v = self.basis
         return np.floor(np.column_stack([points @ u, points @ v]) / self.cell_m).astype(np.int64)
+
+    def near(self, cells: np.ndarray, points: np.ndarray, radius_m: float) -> np.ndarray:
+        """``(C,)`` True where the centre of a cell of ``cells`` ``(C, 2)`` lies within ``radius_m``
+        of a point of ``points`` ``(N, 3)`` along the plane."""
+        if len(cells) == 0 or len(points) == 0:
+            return np.zeros(len(cells), dtype=bool)
+        u, v = self.basis
+        distance, _ = cKDTree(np.column_stack([points @ u, points @ v])).query((cells + 0.5) * self.cell_m)
+        return distance <= radius_m
 
     def heights(self, points: np.ndarray) -> np.ndarray:
         """Signed heights ``(N,)`` of points ``(N, 3)`` above the plane."""
@@ -145,9 +157,17 @@ def enclosed_hidden_cells(
     seen_cells: np.ndarray,
     closing_m: float = 0.6,
     max_samples: int = 500_000,
+    lidar: np.ndarray | None = None,
 ) -> np.ndarray:
     """Floor cells ``(H, 2)`` that neither the mesh nor ``seen_cells`` ``(S, 2)`` (floor the cameras
     saw through mesh holes) cover, but that the room closes in on.
+
+    A connected patch of such cells of which half or more hold a LiDAR return (``lidar``
+    ``(N, 3)``) within :data:`GROUND_BAND_M` of the plane is ground that was seen, not hidden, and
+    is left out: a street's pavement a kerb above the road, or road the mapper's mesh missed
+    between the rings (the LiDAR fill covers that). Patch by patch, so that no strip is cut out
+    of the floor under furniture; the returns do not join the footprint, since far rings would
+    close in on open ground.
 
     The mesh is sampled by area (about nine samples per cell). Up-facing samples within half a
     cell of the plane are floor; from there up to :data:`WALL_HEIGHT_M` they are structure
@@ -190,4 +210,9 @@ def enclosed_hidden_cells(
     # left a 15 cm hole in the completed floor, where a physics probe fell through.
     walls, count = np.unique(cells[wall], axis=0, return_counts=True)
     hidden = enclosed & ~floor_cover & ~raster(walls[count >= MIN_WALL_SAMPLES]) & ~raster(cells[pit])
+    if lidar is not None:
+        ground = raster(grid.cells(lidar[np.abs(grid.heights(lidar)) < GROUND_BAND_M]))
+        parts, count = ndimage.label(hidden, structure=np.ones((3, 3), dtype=bool))
+        seen_share = ndimage.mean(ground, parts, np.arange(1, count + 1))
+        hidden &= np.concatenate([[False], seen_share < 0.5])[parts]
     return np.argwhere(hidden) + low

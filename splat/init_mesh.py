@@ -179,7 +179,8 @@ def ground_fill(
     only (a hole of the mesh), an upright ``cell_m`` square closes the hole where the sight line
     meets the returns. ``lidar`` ``(N, 3)``: the returns the plane is fitted to and the walls are
     found in (without them, the mesh's faces alone). With ``complete_hidden``, the floor no camera
-    sees is completed where the room encloses it (gaps up to ``2 * closing_m`` bridged).
+    sees and the LiDAR does not reach is completed where the room encloses it (gaps up to
+    ``2 * closing_m`` bridged), within ``max_range_m`` of a camera along the floor.
     """
     empty = np.zeros((0, 3, 3))
     plane = fit_floor_plane(mesh, poses_world_cam, lidar)
@@ -213,7 +214,8 @@ def ground_fill(
     points = np.concatenate(hits) if hits else np.zeros((0, 3))
     walls = _wall_patches(grid, np.concatenate(crossings), np.concatenate(cameras)) if crossings else empty
     seen = np.unique(grid.cells(points), axis=0) if len(points) else np.zeros((0, 2), dtype=np.int64)
-    hidden = enclosed_hidden_cells(mesh, grid, seen, closing_m) if complete_hidden else seen[:0]
+    hidden = enclosed_hidden_cells(mesh, grid, seen, closing_m, lidar=lidar) if complete_hidden else seen[:0]
+    hidden = hidden[grid.near(hidden, poses_world_cam[:, :3, 3], max_range_m)]
     reason = (
         f"{len(seen)} floor cells of {cell_m:g} m added under mesh holes the cameras see through"
         if len(seen)
@@ -222,7 +224,7 @@ def ground_fill(
     if len(walls):
         reason += f"; {len(walls) // 2} upright {cell_m:g} m patches where LiDAR returns close those holes"
     if complete_hidden:
-        reason += f"; {len(hidden)} hidden cells completed where the room encloses the floor"
+        reason += f"; {len(hidden)} hidden floor cells completed where walls and objects enclose them"
     return GroundFill(np.concatenate([grid.triangles(seen), walls]), grid.triangles(hidden), plane, reason)
 
 

@@ -218,3 +218,33 @@ def test_one_steep_face_of_a_noisy_ceiling_is_not_a_wall():
 
     assert completed(sliver)
     assert not completed(_box((1.0, 0.02, 0.9), (2.0, 2.05, 2.0)))
+
+
+def test_ground_the_lidar_saw_is_not_completed_as_hidden_floor():
+    """A pavement along one wall (y > 3.2 m, 15 cm above the floor) that the mesh lacks but the
+    LiDAR hit: without the returns the strip would be completed at the floor's height; with them
+    it is left out, and the floor under the box (a few returns of which lie there too) is not."""
+    grid = PlaneGrid(FLOOR, 0.1)
+    room = _room_with_box()
+    strip = (room.triangles_center[:, 1] > 3.2) & (np.abs(room.triangles_center[:, 2]) < 0.01)
+    mesh = trimesh.Trimesh(room.vertices, room.faces[~strip])
+    none = np.zeros((0, 2), dtype=np.int64)
+
+    def strip_and_box(cells: np.ndarray) -> tuple[int, int]:
+        centres = _centres(grid, cells)[:, :2]
+        return int((centres[:, 1] > 3.2).sum()), int(np.all(np.abs(centres - 2) < 0.5, axis=1).sum())
+
+    pavement = np.column_stack([*np.mgrid[0.05:4:0.1, 3.25:4:0.1].reshape(2, -1), np.full(8 * 40, 0.15)])
+    glimpses = np.array([[1.6, 1.6, 0.0], [2.3, 1.7, 0.0], [1.8, 2.4, 0.0]])  # returns under the box
+    without = strip_and_box(enclosed_hidden_cells(mesh, grid, none))
+    with_returns = strip_and_box(enclosed_hidden_cells(mesh, grid, none, lidar=np.vstack([pavement, glimpses])))
+    assert without[0] >= 0.8 * 320 and without[1] >= 80
+    assert with_returns == (0, without[1])
+
+
+def test_plane_grid_finds_the_cells_near_points_along_the_plane():
+    grid = PlaneGrid(FLOOR, 0.5)
+    cells = grid.cells(np.array([[0.1, 0.1, 0.0], [5.1, 0.1, 0.0], [0.1, -3.4, 0.0]]))
+    near = grid.near(cells, np.array([[0.0, 0.0, 1.4], [5.0, 0.0, 30.0]]), 1.0)  # heights do not count
+    np.testing.assert_array_equal(near, [True, True, False])
+    assert grid.near(cells[:0], np.zeros((1, 3)), 1.0).shape == (0,)
