@@ -541,7 +541,7 @@ def floor_triangles(
     LiDAR returns ``lidar`` ``(N, 3)`` (:func:`splat.init_mesh.fit_floor_plane`, as the ground fill
     finds it); all False without a floor."""
     from rig.mesh_io import load_mesh
-    from splat.floor_cells import PlaneGrid
+    from splat.floor_cells import FLOOR_CLEARANCE_M, PlaneGrid
     from splat.init_mesh import fit_floor_plane
 
     poses = np.stack([k.T_world_cam for k in keyframes])
@@ -549,7 +549,7 @@ def floor_triangles(
     triangles = model.params["vertices"].detach().cpu().double().numpy()
     if plane is None:
         return np.zeros(len(triangles), dtype=bool)
-    return PlaneGrid(plane, 1.0).lying_on(triangles)
+    return PlaneGrid(plane, 1.0).lying_on(triangles, FLOOR_CLEARANCE_M)
 
 
 def export_run(model: TriangleModel, scene: Scene, keyframes: list[Keyframe], run_dir: Path) -> dict:

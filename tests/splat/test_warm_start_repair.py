@@ -9,6 +9,7 @@ import trimesh
 from training_scene import WALL_Y, corner_mesh, write_training_scene
 
 from rig.plane_fit import ransac_plane
+from rig.transforms import transform_points
 from slam_bridge.scene import KeyframeLidar, load_scene
 from splat.floor_cells import PlaneGrid, ReturnColumns, enclosed_hidden_cells
 from splat.init_mesh import fit_floor_plane
@@ -237,7 +238,9 @@ def test_ground_the_lidar_saw_is_not_completed_as_hidden_floor():
     pavement = np.column_stack([*np.mgrid[0.05:4:0.1, 3.25:4:0.1].reshape(2, -1), np.full(8 * 40, 0.15)])
     glimpses = np.array([[1.6, 1.6, 0.0], [2.3, 1.7, 0.0], [1.8, 2.4, 0.0]])  # returns under the box
     without = strip_and_box(enclosed_hidden_cells(mesh, grid, none))
-    with_returns = strip_and_box(enclosed_hidden_cells(mesh, grid, none, lidar=np.vstack([pavement, glimpses])))
+    with_returns = strip_and_box(
+        enclosed_hidden_cells(mesh, grid, none, lidar=np.vstack([pavement, glimpses]))
+    )
     assert without[0] >= 0.8 * 320 and without[1] >= 80
     assert with_returns == (0, without[1])
 
@@ -248,3 +251,31 @@ def test_plane_grid_finds_the_cells_near_points_along_the_plane():
     near = grid.near(cells, np.array([[0.0, 0.0, 1.4], [5.0, 0.0, 30.0]]), 1.0)  # heights do not count
     np.testing.assert_array_equal(near, [True, True, False])
     assert grid.near(cells[:0], np.zeros((1, 3)), 1.0).shape == (0,)
+
+
+def test_floor_a_mapper_put_a_few_centimetres_off_the_plane_stays_floor(scene):
+    """The collision mesh keeps the floor no camera sees (:func:`splat.trainer.floor_triangles`):
+    a street's TSDF road lies 2-4 cm below the plane fitted to the returns, and is still floor; a
+    step 25 cm up and a triangle across the wall are not."""
+    import torch
+
+    from splat.model import TriangleModel
+    from splat.trainer import floor_triangles
+
+    flat = np.array([[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.0, 0.3, 0.0]])
+    triangles = np.stack(
+        [
+            flat + np.array([0.0, 0.0, -0.04]),
+            flat + np.array([0.0, 0.0, 0.02]),
+            flat + np.array([0.0, 0.0, 0.25]),
+            [[0, 3, 0], [0.3, 3, 0], [0, 3, 0.5]],
+        ]
+    )
+    model = TriangleModel.from_triangles(
+        torch.from_numpy(triangles),
+        torch.full((4, 3, 3), 0.5, dtype=torch.float64),
+        torch.full((4,), 0.9, dtype=torch.float64),
+    )
+    train = scene.split("train")
+    lidar = np.concatenate([transform_points(k.T_world_cam, scene.lidar(k).points) for k in train])
+    np.testing.assert_array_equal(floor_triangles(model, scene, train, lidar), [True, True, False, False])
