@@ -7,11 +7,6 @@ rendered accumulated depth ``Σ w z``) and of the normal error σn² (``1 - n_pr
 the others are sampled with probability ∝ ``max(rd, rn)``. A sampled triangle's depth variance
 **dominates** when ``rd ≥ rn``: it is cloned (a depth discontinuity needs a second, free-moving
 triangle); otherwise it is subdivided at its edge midpoints into 4 (curvature needs smaller facets).
-
-A triangle on which no LiDAR return lies (camera-only geometry: the facades above a spinning
-LiDAR's top beam) has neither variance; there the variance of its colour error over the opaque
-pixels it dominates, over ``colour_noise²``, decides instead, and a sampled one is subdivided:
-one colour per corner cannot draw the texture under it.
 """
 
 from __future__ import annotations
@@ -49,15 +44,6 @@ def normal_error(out: RenderOutput, prior: Tensor) -> tuple[Tensor, Tensor]:
     return 1.0 - (prior * unit).sum(dim=-1), valid
 
 
-def colour_error(out: RenderOutput, image: Tensor, moving: Tensor | None) -> tuple[Tensor, Tensor]:
-    """Per-pixel mean over channels of ``image - rgb`` ``(H, W)``, and where it counts ``(H, W)``
-    bool: pixels the triangles cover (alpha above one half) that show no moving object."""
-    valid = out.alpha.detach() > 0.5
-    if moving is not None:
-        valid &= ~moving
-    return (image - out.rgb.detach()).mean(dim=-1), valid
-
-
 class VarianceStrategy(SamplingStrategy):
     """Samples triangles whose depth or normal error varies beyond sensor noise (module docstring)."""
 
@@ -65,61 +51,45 @@ class VarianceStrategy(SamplingStrategy):
         super().__init__(config, log)
         self.depth_error = DominantSums.zeros(0, torch.float32, torch.device("cpu"))
         self.normal_error = DominantSums.zeros(0, torch.float32, torch.device("cpu"))
-        self.colour_error = DominantSums.zeros(0, torch.float32, torch.device("cpu"))
 
     def initialize(self, model: TriangleModel) -> None:
-        """Zero the seen-statistics and the depth, normal and colour error sums ``(F,)``."""
+        """Zero the seen-statistics and the depth and normal error sums ``(F,)``."""
         super().initialize(model)
         dtype, n = model.params["vertices"].dtype, model.n_triangles
         self.depth_error = DominantSums.zeros(n, dtype, model.device)
         self.normal_error = DominantSums.zeros(n, dtype, model.device)
-        self.colour_error = DominantSums.zeros(n, dtype, model.device)
 
     def gather(self, model: TriangleModel, out: RenderOutput, view: View) -> None:
-        """Fold in ``out``'s blending weights, its colour error against ``view``'s image and its
-        depth/normal errors against the view's LiDAR depth and normal prior (where it has them)."""
+        """Fold in ``out``'s blending weights and its depth/normal errors against ``view``'s LiDAR
+        depth and normal prior (where the view has them)."""
         super().gather(model, out, view)
-        self.colour_error.add(out.dominant_sums(*colour_error(out, view.image, view.moving_mask)))
         if view.depth is not None:
             self.depth_error.add(out.dominant_sums(*depth_error(out, view.depth)))
         if view.normal is not None:
             self.normal_error.add(out.dominant_sums(*normal_error(out, view.normal)))
 
-    def _noise_ratios(self) -> tuple[Tensor, Tensor, Tensor]:
-        """``rd``, ``rn``, ``rc`` ``(F,)``: depth and normal error variances over their noise floors
-        (0 below MIN_PIXELS), and the colour error's where no LiDAR return lies on the triangle
-        (else 0)."""
-        c = self.config
-        rd = self.depth_error.variance() / c.lidar_noise_m**2
-        rn = self.normal_error.variance() / c.normal_noise**2
-        has_depth = self.depth_error.count >= MIN_PIXELS
-        rd = torch.where(has_depth, rd, 0.0)
+    def _noise_ratios(self) -> tuple[Tensor, Tensor]:
+        """``rd``, ``rn`` ``(F,)``: error variances over their noise floors (0 below MIN_PIXELS)."""
+        rd = self.depth_error.variance() / self.config.lidar_noise_m**2
+        rn = self.normal_error.variance() / self.config.normal_noise**2
+        rd = torch.where(self.depth_error.count >= MIN_PIXELS, rd, 0.0)
         rn = torch.where(self.normal_error.count >= MIN_PIXELS, rn, 0.0)
-        camera_only = (self.depth_error.count == 0) & (self.colour_error.count >= MIN_PIXELS)
-        rc = torch.where(camera_only, self.colour_error.variance() / c.colour_noise**2, 0.0)
-        return rd, rn, rc
+        return rd, rn
 
     def sampling_weights(self, model: TriangleModel) -> tuple[Tensor, Tensor]:
-        """``max(rd, rn, rc)`` for seen triangles above the noise floor, else 0 ``(F,)``; clone where
-        ``rd ≥ max(rn, rc)`` and ``rd > 0`` ``(F,)`` bool."""
+        """``max(rd, rn)`` for seen triangles above the noise floor, else 0 ``(F,)``; clone where
+        ``rd ≥ rn`` ``(F,)`` bool."""
         seen = self.max_weight.to(model.device) >= ALPHA_MIN
-        rd, rn, rc = self._noise_ratios()
-        weight = torch.maximum(torch.maximum(rd, rn), rc)
-        above_noise = weight > 1
-        return torch.where(above_noise & seen, weight, 0.0), (rd >= weight) & (rd > 0)
+        rd, rn = self._noise_ratios()
+        above_noise = (rd > 1) | (rn > 1)
+        return torch.where(above_noise & seen, torch.maximum(rd, rn), 0.0), rd >= rn
 
     def below_noise_floor(self, weights: Tensor) -> int:
         return int(((weights == 0) & (self.max_weight.to(weights.device) > 0)).sum())
 
     def state_dict(self) -> dict:
-        return {
-            **super().state_dict(),
-            "depth_error": self.depth_error,
-            "normal_error": self.normal_error,
-            "colour_error": self.colour_error,
-        }
+        return {**super().state_dict(), "depth_error": self.depth_error, "normal_error": self.normal_error}
 
     def load_state_dict(self, state: dict) -> None:
         super().load_state_dict(state)
         self.depth_error, self.normal_error = state["depth_error"], state["normal_error"]
-        self.colour_error = state["colour_error"]

@@ -17,7 +17,7 @@ from splat.model import TriangleModel, load_model
 from splat.param_rows import make_optimizer, replace_rows
 from splat.strategy import OpacityStrategy, VarianceStrategy
 from splat.strategy.growth import cloned_rows, subdivided_rows
-from splat.strategy.variance import colour_error, depth_error
+from splat.strategy.variance import depth_error
 from splat.trainer import Trainer, TrainingDivergedError, train
 from splat.views import View, load_views
 
@@ -146,32 +146,6 @@ def test_variance_sampling_clones_depth_errors_and_subdivides_normal_errors():
     assert (report.cloned, report.subdivided) == (1, 1)
     assert model.n_triangles == 2 + 2 + 4
     assert strategy.max_weight.shape == (8,) and strategy.depth_error.count.shape == (8,)  # fresh statistics
-
-
-def test_triangles_no_lidar_return_lies_on_are_subdivided_where_their_colour_error_varies():
-    """Camera-only triangles (no LiDAR pixel): the colour error's variance decides; one that
-    also has LiDAR pixels is judged by its depth and normals alone, however its colours vary."""
-    model = _model(4)
-    strategy = _variance_strategy(model, growth_rate=2.0)
-    strategy.max_weight[:] = 1.0
-    strategy.colour_error.count[:] = 100
-    strategy.colour_error.sum_sq[[0, 1]] = 100 * 0.2**2  # triangles 0 and 1: texture under one colour
-    strategy.colour_error.sum_sq[2] = 100 * 0.02**2  # triangle 2: within the colour noise
-    strategy.depth_error.count[1] = 50  # triangle 1 has LiDAR pixels, no depth or normal spread
-    report = strategy.densify(model, _optimizer(model), 20)
-    assert (report.cloned, report.subdivided) == (0, 1)
-    assert model.n_triangles == 3 + 4
-
-
-def test_the_colour_error_leaves_out_uncovered_and_moving_pixels():
-    model = _model(8, seed=2)
-    out = model.render(CAMERA, torch.eye(4))
-    image = torch.rand(CAMERA.height, CAMERA.width, 3, generator=torch.Generator().manual_seed(1))
-    moving = torch.zeros(CAMERA.height, CAMERA.width, dtype=torch.bool)
-    moving[:, : CAMERA.width // 2] = True
-    error, valid = colour_error(out, image, moving)
-    torch.testing.assert_close(error, (image - out.rgb.detach()).mean(dim=-1))
-    assert torch.equal(valid, (out.alpha.detach() > 0.5) & ~moving)
 
 
 def test_a_strategy_densifies_on_schedule_and_moves_adam_state_with_the_rows():
