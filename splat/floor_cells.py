@@ -46,18 +46,22 @@ class PlaneGrid:
         u /= np.linalg.norm(u)
         return u, np.cross(n, u)
 
+    def along(self, points: np.ndarray) -> np.ndarray:
+        """Coordinates ``(N, 2)`` in metres of points ``(N, 3)`` projected onto the plane (along
+        :attr:`basis`)."""
+        u, v = self.basis
+        return np.column_stack([points @ u, points @ v])
+
     def cells(self, points: np.ndarray) -> np.ndarray:
         """Integer cell coordinates ``(N, 2)`` of points ``(N, 3)`` projected onto the plane."""
-        u, v = self.basis
-        return np.floor(np.column_stack([points @ u, points @ v]) / self.cell_m).astype(np.int64)
+        return np.floor(self.along(points) / self.cell_m).astype(np.int64)
 
     def near(self, cells: np.ndarray, points: np.ndarray, radius_m: float) -> np.ndarray:
         """``(C,)`` True where the centre of a cell of ``cells`` ``(C, 2)`` lies within ``radius_m``
         of a point of ``points`` ``(N, 3)`` along the plane."""
         if len(cells) == 0 or len(points) == 0:
             return np.zeros(len(cells), dtype=bool)
-        u, v = self.basis
-        distance, _ = cKDTree(np.column_stack([points @ u, points @ v])).query((cells + 0.5) * self.cell_m)
+        distance, _ = cKDTree(self.along(points)).query((cells + 0.5) * self.cell_m)
         return distance <= radius_m
 
     def heights(self, points: np.ndarray) -> np.ndarray:

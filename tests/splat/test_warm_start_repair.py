@@ -5,15 +5,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 import trimesh
 from training_scene import WALL_Y, corner_mesh, write_training_scene
 
 from rig.plane_fit import ransac_plane
-from rig.transforms import transform_points
 from slam_bridge.scene import KeyframeLidar, load_scene
 from splat.floor_cells import PlaneGrid, ReturnColumns, enclosed_hidden_cells
 from splat.init_mesh import fit_floor_plane
+from splat.lidar_points import lidar_points
 from splat.lidar_snap import snap_to_lidar
+from splat.model import TriangleModel
+from splat.trainer import floor_triangles
 
 FLOOR = np.array([0.0, 0.0, 1.0, 0.0])
 
@@ -257,11 +260,6 @@ def test_floor_a_mapper_put_a_few_centimetres_off_the_plane_stays_floor(scene):
     """The collision mesh keeps the floor no camera sees (:func:`splat.trainer.floor_triangles`):
     a street's TSDF road lies 2-4 cm below the plane fitted to the returns, and is still floor; a
     step 25 cm up and a triangle across the wall are not."""
-    import torch
-
-    from splat.model import TriangleModel
-    from splat.trainer import floor_triangles
-
     flat = np.array([[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.0, 0.3, 0.0]])
     triangles = np.stack(
         [
@@ -277,5 +275,5 @@ def test_floor_a_mapper_put_a_few_centimetres_off_the_plane_stays_floor(scene):
         torch.full((4,), 0.9, dtype=torch.float64),
     )
     train = scene.split("train")
-    lidar = np.concatenate([transform_points(k.T_world_cam, scene.lidar(k).points) for k in train])
-    np.testing.assert_array_equal(floor_triangles(model, scene, train, lidar), [True, True, False, False])
+    floor = floor_triangles(model, scene, train, lidar_points(scene, train))
+    np.testing.assert_array_equal(floor, [True, True, False, False])
