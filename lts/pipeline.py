@@ -70,6 +70,7 @@ class ReconstructOptions:
     span: TimeSpan | None = None
     camera: int | None = None
     exposure: str = "auto"
+    learn_poses: bool = False
     blocks: str | None = None
     ray_address: str | None = None
 
@@ -156,10 +157,11 @@ def check_options(o: ReconstructOptions) -> Recording:
     if o.ray_address is not None and o.blocks is None:
         raise InputError("only with --blocks, which was not given: --ray-address", field="blocks")
     if o.blocks is not None:
-        from splat.blocks.options import parse_block_count
+        from splat.blocks.options import parse_block_count, refuse_learnt_poses
         from splat.blocks.ray_tasks import import_ray
 
         parse_block_count(o.blocks)
+        refuse_learnt_poses(o.learn_poses)
 
         import_ray()  # without the blocks extra, say so before the calibration and the mapper run
     recording = open_recording(o.paths, topic_map=parse_topic_map(o.topics), span=o.span, camera=o.camera)
@@ -267,6 +269,7 @@ def train_key(o: ReconstructOptions) -> list[str]:
     """The training options as ``lts train`` takes them."""
     key = ["--method", o.method, "--preset", o.preset, "--seed", str(o.seed), "--device", o.device]
     key += [] if o.exposure == "auto" else ["--exposure", o.exposure]
+    key += ["--learn-poses"] if o.learn_poses else []
     key += [] if o.blocks is None else ["--blocks", o.blocks]
     return key + (["--iterations", str(o.iterations)] if o.iterations is not None else [])
 
@@ -276,8 +279,9 @@ def train_config(o: ReconstructOptions) -> TrainConfig:
     from splat.config import config_from_options
 
     return config_from_options(
-        o.method, o.preset, seed=o.seed, device=o.device, iterations=o.iterations, exposure=o.exposure
-    )
+        o.method, o.preset, seed=o.seed, device=o.device, iterations=o.iterations, exposure=o.exposure,
+        learn_poses=o.learn_poses,
+    )  # fmt: skip
 
 
 def train_run(

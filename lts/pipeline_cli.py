@@ -108,6 +108,11 @@ def reconstruct_command(
         "--exposure",
         help="auto, on or off: a colour matrix per training image (see lts train --help).",
     ),
+    learn_poses: bool = typer.Option(
+        False,
+        "--learn-poses",
+        help="Learn a correction of each training keyframe's pose with the triangles (see lts train --help).",
+    ),
     blocks: str | None = typer.Option(
         None,
         "--blocks",
@@ -146,7 +151,7 @@ def reconstruct_command(
     options = ReconstructOptions(
         session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval,
         max_size=max_size, downscale=downscale, topics=topics, span=time_span(start, duration), camera=camera,
-        exposure=exposure, blocks=blocks, ray_address=ray_address,
+        exposure=exposure, learn_poses=learn_poses, blocks=blocks, ray_address=ray_address,
     )  # fmt: skip
     result, _ = _run_stages(lambda: (reconstruct(options, _log), []))
     summary = _summary(result)

@@ -78,6 +78,12 @@ class TrainConfig(BaseModel):
         "points neighbouring images share, spread by more than 5 %",
     )
     w_exposure: float = Field(0.01, ge=0, description="weight of the colour maps' prior towards the identity")
+    learn_poses: bool = Field(
+        False,
+        description="learn a rigid correction of each training keyframe's pose with the triangles "
+        "(splat.pose_corrections), pulled towards the LiDAR pose by w_pose",
+    )
+    w_pose: float = Field(0.1, ge=0, description="weight of the pose corrections' prior (rad² + m²)")
 
     # Learning rates (Adam) and their schedule.
     lr_vertices: float = Field(3e-4, ge=0)
@@ -85,6 +91,7 @@ class TrainConfig(BaseModel):
     lr_opacity: float = Field(0.05, ge=0)
     lr_background: float = Field(0.05, ge=0)
     lr_exposure: float = Field(0.01, ge=0)
+    lr_pose: float = Field(1e-4, ge=0, description="radians and metres per step, about")
     vertex_lr_delay: float = Field(0.05, ge=0, le=1, description="vertex lr is 0 for this fraction")
     lr_final_factor: float = Field(0.1, gt=0, le=1)
 
@@ -217,11 +224,13 @@ def config_from_options(
     max_triangles: int | None = None,
     coarse_until: float | None = None,
     exposure: str = "auto",
+    learn_poses: bool = False,
 ) -> TrainConfig:
     """The config ``lts train`` builds from its options (None: the preset's value), so that
     ``lts reconstruct`` can tell whether an existing run was made with the same ones."""
     overrides: dict[str, Any] = {
-        "seed": seed, "device": device, "init_noise_m": init_noise_m, "exposure": exposure
+        "seed": seed, "device": device, "init_noise_m": init_noise_m, "exposure": exposure,
+        "learn_poses": learn_poses,
     }  # fmt: skip
     if iterations is not None:
         overrides["iterations"] = iterations

@@ -31,6 +31,7 @@ class LossTerms:
     opacity: Tensor
     distortion: Tensor
     exposure: Tensor
+    pose: Tensor
 
     def as_floats(self) -> dict[str, float]:
         return {name: float(value.detach()) for name, value in self.__dict__.items()}
@@ -142,6 +143,7 @@ def training_loss(
     moving_mask: Tensor | None = None,
     target_moments: Tensor | None = None,
     exposure_prior: Tensor | None = None,
+    pose_prior: Tensor | None = None,
 ) -> LossTerms:
     """All loss terms of one view.
 
@@ -157,6 +159,8 @@ def training_loss(
         target_moments: :func:`image_moments` of ``image`` when they are at hand (else computed).
         exposure_prior: the view's colour map's distance from the identity
             (:meth:`splat.exposure.ViewExposures.prior`), or None when the run learns no maps.
+        pose_prior: the size of the view's pose correction
+            (:meth:`splat.pose_corrections.PoseCorrections.prior`), or None when the run learns none.
     """
     zero = image.new_zeros(())
     keep = None if moving_mask is None or not bool(moving_mask.any()) else ~moving_mask
@@ -173,6 +177,7 @@ def training_loss(
     opacity_reg = masked_mean(opacity, in_view) if config.w_opacity > 0 and bool(in_view.any()) else zero
     distortion = out.distortion.mean() if config.w_distortion > 0 else zero
     exposure = zero if exposure_prior is None else exposure_prior
+    pose = zero if pose_prior is None else pose_prior
     total = (
         (1 - config.lambda_dssim) * l1
         + config.lambda_dssim * ds
@@ -181,5 +186,6 @@ def training_loss(
         + config.w_depth * depth
         + config.w_distortion * distortion
         + config.w_exposure * exposure
+        + config.w_pose * pose
     )
-    return LossTerms(total, l1, ds, depth, normal, opacity_reg, distortion, exposure)
+    return LossTerms(total, l1, ds, depth, normal, opacity_reg, distortion, exposure, pose)

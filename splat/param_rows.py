@@ -38,12 +38,13 @@ def replace_rows(
 
 
 def make_optimizer(
-    model: TriangleModel, lrs: dict[str, float], exposure: Tensor | None = None
+    model: TriangleModel, lrs: dict[str, float], view_params: dict[str, Tensor] | None = None
 ) -> torch.optim.Adam:
     """Adam with one parameter group per model parameter (named ``name``), plus one named
-    ``background`` when the model has a background and one named ``exposure`` for the training
-    views' colour maps ``(V, 3, 3)`` (:mod:`splat.exposure`) when given, learning rates ``lrs``
-    (name → lr).
+    ``background`` when the model has a background and one per entry of ``view_params`` (name →
+    what the run learns per training view: ``exposure``, the colour maps ``(V, 3, 3)`` of
+    :mod:`splat.exposure`; ``pose``, the corrections ``(V, 6)`` of :mod:`splat.pose_corrections`),
+    learning rates ``lrs`` (name → lr).
 
     PyTorch's fused Adam: one kernel over all parameters instead of a dozen tensor operations per
     parameter (on the CPU at 47k triangles 0.4 ms a step instead of 6 ms); its steps agree with the
@@ -51,6 +52,6 @@ def make_optimizer(
     groups = [{"params": [model.params[name]], "lr": lrs[name], "name": name} for name in model.params]
     if model.background is not None:
         groups.append({"params": [model.background], "lr": lrs["background"], "name": "background"})
-    if exposure is not None:
-        groups.append({"params": [exposure], "lr": lrs["exposure"], "name": "exposure"})
+    for name, param in (view_params or {}).items():
+        groups.append({"params": [param], "lr": lrs[name], "name": name})
     return torch.optim.Adam(groups, eps=1e-15, fused=True)

@@ -12,6 +12,8 @@
     renders/NAME.png       test-view renders of the final model (through their colour maps)
     exposure.json          the colour map of every keyframe (splat.exposure): {"test_views": how the
                            held-out ones were chosen, "maps": {NAME: 3x3}}; absent when it learnt none
+    keyframe_poses.tum     the training keyframes' camera poses as the run corrected them (learn_poses;
+                           splat.pose_corrections), TUM at their stamps; absent when it learnt none
     mesh.ply|obj|glb       the exported triangles (opaque); collision.ply (+ .obj) for physics
 """
 
@@ -32,6 +34,7 @@ MODEL = "model.pt"
 SUMMARY = "summary.json"
 RENDERS = "renders"
 EXPOSURE = "exposure.json"
+KEYFRAME_POSES = "keyframe_poses.tum"
 
 
 def config_path(run_dir: Path) -> Path:
@@ -111,3 +114,7 @@ def read_color_maps(run_dir: Path) -> tuple[dict[str, np.ndarray], str | None]:
         raise InputError(
             f"expected {{'test_views': ..., 'maps': {{NAME: 3x3}}}} ({exc})", path=path, field="maps"
         ) from None
+
+
+def keyframe_poses_path(run_dir: Path) -> Path:
+    return Path(run_dir) / KEYFRAME_POSES

@@ -67,14 +67,13 @@ class ProfiledTrainer(Trainer):
             _apply_schedule(self.model, self.optimizer, self.config, it)
             index, view, camera = self._training_view(it)
         with self._timed(SECTIONS[1]):
-            out, exposure_prior = self._render_training_view(index, view, camera)
+            out, priors = self._render_training_view(index, view, camera)
             opacity = self.model.triangle_opacity()
         leaves = {name: getattr(out, name).detach().requires_grad_() for name in LOSS_INPUTS}
         with self._timed(SECTIONS[2]):
             terms = training_loss(
                 replace(out, **leaves), view.image, view.depth, view.normal, opacity, self.config,
-                moving_mask=view.moving_mask, target_moments=view.image_moments,
-                exposure_prior=exposure_prior,
+                moving_mask=view.moving_mask, target_moments=view.image_moments, **priors,
             )  # fmt: skip
         with self._timed(SECTIONS[3]):
             terms.total.backward()

@@ -8,7 +8,7 @@ import typer
 
 from rig.cli_support import console, emit_json
 from rig.errors import InputError
-from splat.blocks.options import BlockOptions, parse_block_count
+from splat.blocks.options import BlockOptions, parse_block_count, refuse_learnt_poses
 from splat.config import METHODS, PRESETS, TrainConfig
 
 
@@ -51,6 +51,12 @@ def train_command(
         help="auto, on or off: learn a colour matrix per training image (auto-exposure, white balance); "
         "auto learns them when the images' gains, measured on the LiDAR points neighbouring images "
         "share, spread by more than 5 %.",
+    ),
+    learn_poses: bool = typer.Option(
+        False,
+        "--learn-poses",
+        help="Learn a rigid correction of each training keyframe's pose with the triangles, held near "
+        "the LiDAR pose by a prior; writes RUN_DIR/keyframe_poses.tum (the corrected poses).",
     ),
     seed: int = typer.Option(0, help="Seed of view order, sampling and noise."),
     device: str = typer.Option("cpu", help="cpu or cuda (the matching rasteriser kernel is used)."),
@@ -98,10 +104,12 @@ def train_command(
     if blocks is None and (given := [name for name, value in block_settings.items() if value is not None]):
         raise InputError(f"only with --blocks, which was not given: {', '.join(given)}", field="blocks")
     count = None if blocks is None else parse_block_count(blocks)
+    if count is not None:
+        refuse_learnt_poses(learn_poses)
 
     config = config_from_options(
         method, preset, seed=seed, device=device, init_noise_m=init_noise, iterations=iterations,
-        max_triangles=max_triangles, coarse_until=half_resolution, exposure=exposure,
+        max_triangles=max_triangles, coarse_until=half_resolution, exposure=exposure, learn_poses=learn_poses,
     )  # fmt: skip
     try:
         if count is not None:
@@ -135,6 +143,11 @@ def train_command(
         e = result.exposure
         console.print(f"  colour maps per training image: gain {e['gain_min']:.2f}-{e['gain_max']:.2f}, "
                       f"channel mixing up to {e['mixing_max']:.3f}", highlight=False)  # fmt: skip
+    if result.poses:
+        p = result.poses
+        console.print(f"  pose corrections: rotation median {p['rotation_median_deg']:.3f}° (largest "
+                      f"{p['rotation_max_deg']:.3f}°), translation median {p['translation_median_cm']:.2f} "
+                      f"cm (largest {p['translation_max_cm']:.2f} cm)", highlight=False)  # fmt: skip
     for line in result.skips:
         console.print(f"  skipped: {line}", highlight=False)
     for b in result.blocks:

@@ -34,6 +34,7 @@ from splat.initialise import build_model, initial_triangles
 from splat.losses import image_moments, training_loss
 from splat.model import TriangleModel, save_model
 from splat.param_rows import make_optimizer
+from splat.pose_corrections import PoseCorrections
 from splat.raster import RenderOutput
 from splat.schedule import final_phase_start, schedule_at
 from splat.strategy import DensifyReport, strategy_for
@@ -67,6 +68,7 @@ class TrainResult:
     export: dict = field(default_factory=dict)
     exposure: dict = field(default_factory=dict)
     blocks: list[dict] = field(default_factory=list)
+    poses: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -92,6 +94,7 @@ def _learning_rates(config: TrainConfig) -> dict[str, float]:
         "opacity": config.lr_opacity,
         "background": config.lr_background,
         "exposure": config.lr_exposure,
+        "pose": config.lr_pose,
     }
 
 
@@ -140,6 +143,7 @@ class Trainer:
         self.log = log
         self.state = _State()
         self.exposures: ViewExposures | None = None
+        self.poses: PoseCorrections | None = None
         # The coarse start (splat.coarse_views): how many iterations, the camera and the views of it.
         self._coarse_iterations = coarse_iterations(self.scene.camera, config)
         self._half_camera = half_camera(self.scene.camera)
@@ -199,7 +203,9 @@ class Trainer:
         )
         if self._learns_exposure():
             self.exposures = ViewExposures.identity(len(self.train_views), device=self.config.device)
-        self.optimizer = make_optimizer(self.model, _learning_rates(self.config), self._exposure_offsets())
+        if self.config.learn_poses:
+            self.poses = PoseCorrections.zeros(self._train_poses())
+        self.optimizer = make_optimizer(self.model, _learning_rates(self.config), self._view_params())
         self.strategy.initialize(self.model)
         layout.metrics_path(self.run_dir).write_text("")
         if self._coarse_iterations > 0:
@@ -271,6 +277,7 @@ class Trainer:
             "strategy": self.strategy.state_dict(),
             "state": asdict(self.state),
             "exposure": None if self.exposures is None else self.exposures.offsets.detach().cpu().clone(),
+            "pose": None if self.poses is None else self.poses.params.detach().cpu().clone(),
         }
         with atomic_path(path) as tmp:
             torch.save(state, tmp)
@@ -291,7 +298,9 @@ class Trainer:
             self.log("the checkpoint predates trained backgrounds: the run continues without one")
         if self.config.exposure == "on" or ckpt.get("exposure") is not None:
             self.exposures = _exposures_from_checkpoint(ckpt, len(self.train_views), self.config.device, path)
-        self.optimizer = make_optimizer(self.model, _learning_rates(self.config), self._exposure_offsets())
+        if self.config.learn_poses:
+            self.poses = _poses_from_checkpoint(ckpt, self._train_poses(), path)
+        self.optimizer = make_optimizer(self.model, _learning_rates(self.config), self._view_params())
         self.optimizer.load_state_dict(ckpt["optimizer"])
         self.strategy.load_state_dict(ckpt["strategy"])
         self.state = _State(**ckpt["state"])
@@ -308,11 +317,11 @@ class Trainer:
         self.strategy.before_step(self.model, self.optimizer, it)
         _apply_schedule(self.model, self.optimizer, self.config, it)
         index, view, camera = self._training_view(it)
-        out, exposure_prior = self._render_training_view(index, view, camera)
+        out, priors = self._render_training_view(index, view, camera)
         opacity = self.model.triangle_opacity()
         terms = training_loss(
             out, view.image, view.depth, view.normal, opacity, self.config,
-            moving_mask=view.moving_mask, target_moments=view.image_moments, exposure_prior=exposure_prior,
+            moving_mask=view.moving_mask, target_moments=view.image_moments, **priors,
         )  # fmt: skip
         terms.total.backward()
         accepted = self._optimizer_step(terms.total, it)
@@ -339,24 +348,44 @@ class Trainer:
 
     def _render_training_view(
         self, index: int, view: View, camera: CameraModel
-    ) -> tuple[RenderOutput, torch.Tensor | None]:
-        """The render of training view ``index`` (its colours mapped by the view's exposure, when
-        the run learns them) and that map's prior term (None without)."""
-        out = self.model.render(camera, view.T_cam_world, background_mask=view.background_mask)
-        if self.exposures is None:
-            return out, None
-        return replace(out, rgb=self.exposures.apply(out.rgb, index)), self.exposures.prior(index)
+    ) -> tuple[RenderOutput, dict[str, torch.Tensor]]:
+        """The render of training view ``index`` (from its corrected pose and its colours mapped by
+        the view's exposure, when the run learns them) and the priors of what the view learns
+        (keyword arguments of :func:`splat.losses.training_loss`: ``exposure_prior``,
+        ``pose_prior``; empty when it learns neither)."""
+        priors: dict[str, torch.Tensor] = {}
+        T_cam_world = view.T_cam_world
+        if self.poses is not None:
+            T_cam_world = self.poses.corrected(index)
+            priors["pose_prior"] = self.poses.prior(index)
+        out = self.model.render(camera, T_cam_world, background_mask=view.background_mask)
+        if self.exposures is not None:
+            out = replace(out, rgb=self.exposures.apply(out.rgb, index))
+            priors["exposure_prior"] = self.exposures.prior(index)
+        return out, priors
 
-    def _exposure_offsets(self) -> torch.Tensor | None:
-        return None if self.exposures is None else self.exposures.offsets
+    def _train_poses(self) -> torch.Tensor:
+        """``(V, 4, 4)`` the training views' world-to-camera transforms."""
+        return torch.stack([view.T_cam_world for view in self.train_views])
+
+    def _view_params(self) -> dict[str, torch.Tensor]:
+        """What the run learns per training view besides the triangles: name → leaf."""
+        params = {}
+        if self.exposures is not None:
+            params["exposure"] = self.exposures.offsets
+        if self.poses is not None:
+            params["pose"] = self.poses.params
+        return params
 
     def _optimizer_step(self, loss: torch.Tensor, it: int) -> bool:
         """Step the optimiser if ``loss`` and every gradient are finite, else count a rejected step
         (too many in a row: :class:`TrainingDivergedError`); the gradients are cleared either way."""
-        params = self.model.trainable() + ([] if self.exposures is None else [self.exposures.offsets])
+        params = self.model.trainable() + list(self._view_params().values())
         finite = _finite_step(loss, params)
         if finite:
             self.optimizer.step()
+            if self.poses is not None:
+                self.poses.remove_common_motion()
         self.optimizer.zero_grad(set_to_none=True)
         self.state.rejected_total += not finite
         self.state.rejected_in_a_row = 0 if finite else self.state.rejected_in_a_row + 1
@@ -477,12 +506,17 @@ class Trainer:
         test = self.state.last_test
         exposure = self._write_color_maps()
         write_renders(self.model, self.test_views, self.scene.camera, layout.renders_dir(self.run_dir))
-        export = export_run(self.model, self.scene, self.train_keyframes, self.run_dir)
+        keyframes, poses = self.train_keyframes, {}
+        if self.poses is not None:
+            keyframes = self.poses.corrected_keyframes(keyframes)
+            write_keyframe_poses(keyframes, layout.keyframe_poses_path(self.run_dir))
+            poses = self.poses.summary()
+        export = export_run(self.model, self.scene, keyframes, self.run_dir)
         c, s = self.config, self.state
         result = TrainResult(
             str(self.run_dir), c.method, c.preset, c.device, s.iteration, round(s.elapsed_s, 3),
             self.model.n_triangles, s.stopped_early, s.rejected_total, test, s.skips, s.densification, export,
-            exposure,
+            exposure, poses=poses,
         )  # fmt: skip
         layout.summary_path(self.run_dir).write_text(json.dumps(asdict(result), indent=1))
         return result
@@ -506,6 +540,33 @@ def _exposures_from_checkpoint(ckpt: dict, n_views: int, device: str, path: Path
             field="exposure",
         )
     return ViewExposures(offsets.to(device))
+
+
+def _poses_from_checkpoint(ckpt: dict, T_cam_world: torch.Tensor, path: Path) -> PoseCorrections:
+    """The checkpoint's pose corrections of the training views at ``T_cam_world`` ``(V, 4, 4)``; an
+    error naming the file when it has none or those of another number of views."""
+    n_views = len(T_cam_world)
+    params = ckpt.get("pose")
+    if not isinstance(params, torch.Tensor) or params.shape != (n_views, 6):
+        got = "none" if params is None else tuple(getattr(params, "shape", ()))
+        raise InputError(
+            f"expected the pose corrections of {n_views} training views (6 numbers each), got {got}; the "
+            "run was started without learning poses or on other keyframes: train into a new --out",
+            path=path,
+            field="pose",
+        )
+    return PoseCorrections(params.to(T_cam_world), T_cam_world)
+
+
+def write_keyframe_poses(keyframes: list[Keyframe], path: Path) -> None:
+    """The keyframes' camera poses ``T_world_cam`` as a TUM trajectory at their stamps (what
+    ``lts trajectory compare`` reads)."""
+    from rig.trajectory import Trajectory
+    from rig.trajectory_io import write_tum
+
+    ordered = sorted(keyframes, key=lambda k: k.t_ns)
+    poses = np.stack([k.T_world_cam for k in ordered])
+    write_tum(Trajectory.from_poses(np.array([k.t_ns for k in ordered]), poses), path)
 
 
 def _progress_text(losses: dict[str, float], n_triangles: int, rate: float) -> str:

@@ -38,3 +38,15 @@ def parse_block_count(value: str) -> str:
     if value == "auto" or (value.isdigit() and int(value) >= 1):
         return value
     raise InputError(f"expected auto or a number of blocks >= 1, got {value!r}", field="blocks")
+
+
+def refuse_learnt_poses(learn_poses: bool) -> None:
+    """Blocks train apart, so each would learn its own correction of the keyframes they share and
+    their merged triangles would disagree at the seams: ``--learn-poses`` is refused with
+    ``--blocks`` (one line, before anything runs)."""
+    from rig.errors import InputError
+
+    if learn_poses:
+        raise InputError("not with --blocks (each block would correct the keyframes it shares with its "
+                         "neighbours on its own); train without --blocks or without --learn-poses",
+                         field="learn-poses")  # fmt: skip
