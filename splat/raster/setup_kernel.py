@@ -30,6 +30,28 @@ class _Setup(torch.autograd.Function):
         return d_vertices, d_colors, d_opacities, d_sigma, None, None, None, None, None, None
 
 
+class _PoseGradient(torch.autograd.Function):
+    """The world-frame vertices ``(V, 3)`` as they are, giving the pose ``T_cam_world`` ``(4, 4)`` the
+    gradient of the camera-frame vertices ``R v + t`` from the vertices' own: with ``g`` the gradient
+    of the world-frame vertices under the pose, ``dL/dR = R Σ g vᵀ`` and ``dL/dt = R Σ g``. Two
+    reductions over the vertices instead of moving all of them with autograd (which costs a matrix
+    product forward and two backward: 9 ms a step at 47k triangles on 2 cores, against ~1 ms)."""
+
+    @staticmethod
+    def forward(ctx, vertices, T_cam_world):
+        ctx.save_for_backward(vertices, T_cam_world)
+        return vertices.view_as(vertices)
+
+    @staticmethod
+    def backward(ctx, d_vertices):
+        vertices, T_cam_world = ctx.saved_tensors
+        R = T_cam_world[:3, :3]
+        d_pose = torch.zeros_like(T_cam_world)
+        d_pose[:3, :3] = R @ (d_vertices.T @ vertices).to(R)
+        d_pose[:3, 3] = R @ d_vertices.sum(dim=0).to(R)
+        return d_vertices, d_pose
+
+
 def project_triangles_kernel(
     vertices: Tensor,
     faces: Tensor,
@@ -42,9 +64,9 @@ def project_triangles_kernel(
     ext: ModuleType,
 ) -> ProjectedTriangles:
     """Arguments and result as :func:`~splat.raster.project.project_triangles`."""
-    if T_cam_world.requires_grad:  # pose gradients: move to the camera frame with autograd first
-        vertices = vertices @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]
-        T_cam_world = torch.eye(4, dtype=vertices.dtype, device=vertices.device)
+    if T_cam_world.requires_grad:  # pose gradients, from the vertices' (see _PoseGradient)
+        vertices = _PoseGradient.apply(vertices, T_cam_world)
+        T_cam_world = T_cam_world.detach()
     pose = T_cam_world.detach().to("cpu", torch.float64)
     view = torch.cat(
         [
