@@ -2,9 +2,8 @@
 
 Each training view ``i`` renders from ``C_i · T_cam_world_i``, where ``C_i`` is a small rigid
 motion in the camera frame: a rotation vector ``ω_i`` (radians) and a translation ``τ_i``
-(metres). The rasteriser's gradients reach ``C_i`` through the camera-frame vertices
-(:func:`splat.raster.setup_kernel.project_triangles_kernel` moves them with autograd when the pose
-requires grad). The view's LiDAR depth and normals are camera-frame data of the same rig, so they
+(metres). The rasteriser gives the pose its gradient (:func:`splat.render` with a
+``T_cam_world`` that requires grad), and through it ``C_i`` gets its own. The view's LiDAR depth and normals are camera-frame data of the same rig, so they
 move with the correction. A prior pulls every correction towards zero (the LiDAR poses).
 
 Moving every camera and the triangles by one rigid motion of the world changes no render: that
