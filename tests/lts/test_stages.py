@@ -140,3 +140,19 @@ def test_colour_maps_key_the_training_stage_only_when_not_automatic(tmp_path: Pa
     session = tmp_path / "s.mcap"
     assert "--exposure" not in train_key(ReconstructOptions(session, tmp_path))  # earlier runs stay done
     assert train_key(ReconstructOptions(session, tmp_path, exposure="off"))[-2:] == ["--exposure", "off"]
+
+
+def test_learnt_poses_key_the_training_stage_and_are_refused_with_blocks_before_any_stage(
+    tmp_path: Path,
+) -> None:
+    from lts.pipeline import ReconstructOptions, reconstruct, train_config, train_key
+    from rig.errors import InputError
+
+    session = tmp_path / "s.mcap"
+    assert "--learn-poses" not in train_key(ReconstructOptions(session, tmp_path))  # earlier runs stay done
+    learning = ReconstructOptions(session, tmp_path, learn_poses=True)
+    assert "--learn-poses" in train_key(learning) and train_config(learning).learn_poses
+    options = ReconstructOptions(session, tmp_path / "run", learn_poses=True, blocks="2")
+    with pytest.raises(InputError, match="not with --blocks"):  # before the recording is even opened
+        reconstruct(options, log=lambda *_: None)
+    assert not (tmp_path / "run").exists()
