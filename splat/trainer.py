@@ -527,34 +527,31 @@ def _seconds(keyframes: list[Keyframe]) -> np.ndarray:
     return np.array([k.t_ns * 1e-9 for k in keyframes])
 
 
-def _exposures_from_checkpoint(ckpt: dict, n_views: int, device: str, path: Path) -> ViewExposures:
-    """The checkpoint's colour maps of ``n_views`` training views; an error naming the file when it
-    has none (a run without them) or maps of another number of views."""
-    offsets = ckpt.get("exposure")
-    if not isinstance(offsets, torch.Tensor) or offsets.shape != (n_views, 3, 3):
-        got = "none" if offsets is None else tuple(getattr(offsets, "shape", ()))
+def _per_view_tensor(ckpt: dict, field: str, shape: tuple[int, ...], what: str, path: Path) -> torch.Tensor:
+    """The checkpoint's ``field``, what the run learnt per training view (``what``, shape ``shape``
+    with the views first); an error naming the file when it has none (a run started without them)
+    or one of another shape (other keyframes)."""
+    value = ckpt.get(field)
+    if not isinstance(value, torch.Tensor) or tuple(value.shape) != shape:
+        got = "none" if value is None else tuple(getattr(value, "shape", ()))
         raise InputError(
-            f"expected the colour maps of {n_views} training views (3x3 each), got {got}; the run was "
-            "started without colour maps or on other keyframes: train into a new --out",
+            f"expected the {what} of {shape[0]} training views (shape {shape}), got {got}; the run was "
+            f"started without {what} or on other keyframes: train into a new --out",
             path=path,
-            field="exposure",
+            field=field,
         )
-    return ViewExposures(offsets.to(device))
+    return value
+
+
+def _exposures_from_checkpoint(ckpt: dict, n_views: int, device: str, path: Path) -> ViewExposures:
+    """The checkpoint's colour maps of ``n_views`` training views (:func:`_per_view_tensor`)."""
+    return ViewExposures(_per_view_tensor(ckpt, "exposure", (n_views, 3, 3), "colour maps", path).to(device))
 
 
 def _poses_from_checkpoint(ckpt: dict, T_cam_world: torch.Tensor, path: Path) -> PoseCorrections:
-    """The checkpoint's pose corrections of the training views at ``T_cam_world`` ``(V, 4, 4)``; an
-    error naming the file when it has none or those of another number of views."""
-    n_views = len(T_cam_world)
-    params = ckpt.get("pose")
-    if not isinstance(params, torch.Tensor) or params.shape != (n_views, 6):
-        got = "none" if params is None else tuple(getattr(params, "shape", ()))
-        raise InputError(
-            f"expected the pose corrections of {n_views} training views (6 numbers each), got {got}; the "
-            "run was started without learning poses or on other keyframes: train into a new --out",
-            path=path,
-            field="pose",
-        )
+    """The checkpoint's pose corrections of the training views at ``T_cam_world`` ``(V, 4, 4)``
+    (:func:`_per_view_tensor`)."""
+    params = _per_view_tensor(ckpt, "pose", (len(T_cam_world), 6), "pose corrections", path)
     return PoseCorrections(params.to(T_cam_world), T_cam_world)
 
 
