@@ -29,6 +29,7 @@ _EXPORTS = {
     "background_image": "splat.background",
     "constant_background": "splat.background",
     "ViewExposures": "splat.exposure",
+    "PoseCorrections": "splat.pose_corrections",
     "export_mesh": "splat.export",
     "decouple_and_scale": "splat.init_mesh",
     "ground_fill": "splat.init_mesh",
