@@ -83,7 +83,12 @@ class TrainConfig(BaseModel):
         description="learn a rigid correction of each training keyframe's pose with the triangles "
         "(splat.pose_corrections), pulled towards the LiDAR pose by w_pose",
     )
-    w_pose: float = Field(0.1, ge=0, description="weight of the pose corrections' prior (rad² + m²)")
+    w_pose: float = Field(0.1, ge=0, description="weight of the pose corrections' prior")
+    pose_prior_translation_m: float = Field(
+        0.1,
+        gt=0,
+        description="in the pose prior, a move of this many metres costs as much as a turn of 1 rad",
+    )
 
     # Learning rates (Adam) and their schedule.
     lr_vertices: float = Field(3e-4, ge=0)

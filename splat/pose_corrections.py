@@ -3,8 +3,13 @@
 Each training view ``i`` renders from ``C_i · T_cam_world_i``, where ``C_i`` is a small rigid
 motion in the camera frame: a rotation vector ``ω_i`` (radians) and a translation ``τ_i``
 (metres). The rasteriser gives the pose its gradient (:func:`splat.render` with a
-``T_cam_world`` that requires grad), and through it ``C_i`` gets its own. The view's LiDAR depth and normals are camera-frame data of the same rig, so they
-move with the correction. A prior pulls every correction towards zero (the LiDAR poses).
+``T_cam_world`` that requires grad), and through it ``C_i`` gets its own. The view's LiDAR depth
+and normals are camera-frame data of the same rig, so they move with the correction.
+
+A prior pulls every correction towards zero (the LiDAR poses) and holds moves harder than turns:
+a turn shifts the whole image, a move only what is near, so the images pin a move down less. With
+a move as cheap as a turn of the same shift at 1 m, the 8 s street's keyframes wandered by 3 cm
+(median; ATE 0.52 → 3.4 cm) at the same test PSNR.
 
 Moving every camera and the triangles by one rigid motion of the world changes no render: that
 gauge is left free by the images and the LiDAR, and the prior alone holds it too loosely (on the
@@ -59,10 +64,11 @@ class PoseCorrections:
         (differentiable in the correction)."""
         return rigid_transforms(self.params[view : view + 1])[0] @ self.T_cam_world[view]
 
-    def prior(self, view: int) -> Tensor:
-        """Squared size of view ``view``'s correction, ``|ω|² + |τ|²`` (radians², metres²: a turn
-        and a move that shift a point 1 m away equally cost the same)."""
-        return self.params[view].square().sum()
+    def prior(self, view: int, translation_scale_m: float) -> Tensor:
+        """Squared size of view ``view``'s correction, ``|ω|² + |τ / translation_scale_m|²`` (ω in
+        radians): a move of ``translation_scale_m`` costs as much as a turn of one radian."""
+        p = self.params[view]
+        return p[:3].square().sum() + (p[3:] / translation_scale_m).square().sum()
 
     @torch.no_grad()
     def remove_common_motion(self) -> None:

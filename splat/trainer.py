@@ -357,7 +357,7 @@ class Trainer:
         T_cam_world = view.T_cam_world
         if self.poses is not None:
             T_cam_world = self.poses.corrected(index)
-            priors["pose_prior"] = self.poses.prior(index)
+            priors["pose_prior"] = self.poses.prior(index, self.config.pose_prior_translation_m)
         out = self.model.render(camera, T_cam_world, background_mask=view.background_mask)
         if self.exposures is not None:
             out = replace(out, rgb=self.exposures.apply(out.rgb, index))

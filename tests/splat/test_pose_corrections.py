@@ -58,7 +58,7 @@ def test_a_zero_correction_is_the_pose_and_a_correction_moves_the_camera_by_its_
     T_cam_world = torch.as_tensor(invert(_turn_and_move(20.0, 80.0, 1)), dtype=torch.float32)
     zero = PoseCorrections.zeros(T_cam_world.expand(3, 4, 4))
     assert torch.equal(zero.corrected(1), T_cam_world)
-    assert float(zero.prior(0).detach()) == 0.0
+    assert float(zero.prior(0, 0.1).detach()) == 0.0
 
     C = _turn_and_move(0.7, 2.5, 2)
     params = torch.zeros(3, 6)
@@ -73,6 +73,10 @@ def test_a_zero_correction_is_the_pose_and_a_correction_moves_the_camera_by_its_
     moved = poses.corrected_keyframes(keyframes)
     np.testing.assert_allclose(invert(moved[2].T_world_cam), C @ T_cam_world.double().numpy(), atol=1e-6)
     np.testing.assert_allclose(moved[0].T_world_cam, keyframes[0].T_world_cam, atol=1e-12)
+    p = params[2]
+    assert float(poses.prior(2, 0.1).detach()) == pytest.approx(
+        float(p[:3].square().sum() + (p[3:] / 0.1).square().sum())
+    )
     summary = poses.summary()
     assert summary["rotation_max_deg"] == pytest.approx(0.7, abs=1e-3)
     assert summary["translation_max_cm"] == pytest.approx(2.5, abs=1e-3)
