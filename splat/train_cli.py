@@ -56,7 +56,9 @@ def train_command(
         False,
         "--learn-poses",
         help="Learn a rigid correction of each training keyframe's pose with the triangles, held near "
-        "the LiDAR pose by a prior; writes RUN_DIR/keyframe_poses.tum (the corrected poses).",
+        "the LiDAR pose by a prior; writes RUN_DIR/keyframe_poses.tum (the corrected poses). For poses "
+        "rougher than the images (another mapper's, an imported trajectory); on good ones it gains "
+        "little (docs/training.md).",
     ),
     seed: int = typer.Option(0, help="Seed of view order, sampling and noise."),
     device: str = typer.Option("cpu", help="cpu or cuda (the matching rasteriser kernel is used)."),
