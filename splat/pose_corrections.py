@@ -86,12 +86,11 @@ class PoseCorrections:
         self.params -= torch.cat([camera_omega, camera_tau], dim=1)
 
     def sizes(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(V,)`` each correction's rotation (degrees) and ``(V,)`` the camera centre's move
-        (metres)."""
-        C = self.matrices().detach().double().cpu().numpy()
-        cos = np.clip((np.trace(C[:, :3, :3], axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
-        # The centre of a camera C·T moves by -Rᵀ R_Cᵀ τ: as far as the correction's translation.
-        return np.degrees(np.arccos(cos)), np.linalg.norm(C[:, :3, 3], axis=1)
+        """``(V,)`` each correction's rotation (degrees: the rotation vector's length) and ``(V,)``
+        the camera centre's move (metres: the centre of ``C·T`` moves by ``-Rᵀ R_Cᵀ τ``, as far as
+        the translation ``τ``)."""
+        params = self.params.detach().double().cpu().numpy()
+        return np.degrees(np.linalg.norm(params[:, :3], axis=1)), np.linalg.norm(params[:, 3:], axis=1)
 
     def corrected_keyframes(self, keyframes: list[Keyframe]) -> list[Keyframe]:
         """``keyframes`` (the training views', in order) with their corrected camera poses."""
