@@ -47,8 +47,8 @@ class _PoseGradient(torch.autograd.Function):
         vertices, T_cam_world = ctx.saved_tensors
         R = T_cam_world[:3, :3]
         d_pose = torch.zeros_like(T_cam_world)
-        d_pose[:3, :3] = R @ (d_vertices.T @ vertices).to(R)
-        d_pose[:3, 3] = R @ d_vertices.sum(dim=0).to(R)
+        d_pose[:3, :3] = R @ (d_vertices.T @ vertices)  # render() holds the pose to the vertices' dtype
+        d_pose[:3, 3] = R @ d_vertices.sum(dim=0)
         return d_vertices, d_pose
 
 
