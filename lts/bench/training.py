@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from eval.ground_truth import compare_culled, culled_samples, load_ground_truth
+from lts.bench.figures import pyplot, save_figure
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import load_scene
@@ -231,24 +232,8 @@ def bench_noise(
     return result
 
 
-def _figure():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(plt, fig, path: Path) -> None:
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-
-
 def _plot_pareto(rows: list[dict], front: list[int], path: Path) -> None:
-    plt = _figure()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
     ax.scatter([r["train_seconds"] for r in rows], [r["chamfer_m"] for r in rows], c="#888", label="runs")
     best = [rows[i] for i in front]
@@ -266,11 +251,11 @@ def _plot_pareto(rows: list[dict], front: list[int], path: Path) -> None:
         )
     ax.set(xlabel="training time (s)", ylabel="Chamfer-L1 (m)", title="Run time against error")
     ax.legend()
-    _save(plt, fig, path)
+    save_figure(plt, fig, path)
 
 
 def _plot_bars(rows: list[dict], path: Path) -> None:
-    plt = _figure()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.5), dpi=120)
     names = [r["method"] for r in rows]
     panels = (("psnr", "PSNR (dB)"), ("fscore", "F-score @10 cm"), ("chamfer_m", "Chamfer (m)"))
@@ -278,11 +263,11 @@ def _plot_bars(rows: list[dict], path: Path) -> None:
         ax.bar(names, [r[key] for r in rows], color=["#c0392b" if n == "ours" else "#7f8c8d" for n in names])
         ax.set_title(label)
         ax.tick_params(axis="x", rotation=45)
-    _save(plt, fig, path)
+    save_figure(plt, fig, path)
 
 
 def _plot_noise(rows: list[dict], path: Path) -> None:
-    plt = _figure()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
     noise = [100 * r["init_noise_m"] for r in rows]
     ax.plot(noise, [r["fscore"] for r in rows], "o-", c="#c0392b", label="F-score @10 cm")
@@ -291,7 +276,7 @@ def _plot_noise(rows: list[dict], path: Path) -> None:
     twin.plot(noise, [r["psnr"] for r in rows], "s--", c="#2c3e50", label="PSNR")
     twin.set_ylabel("test PSNR (dB)")
     fig.legend(loc="lower left")
-    _save(plt, fig, path)
+    save_figure(plt, fig, path)
 
 
 def resolve_scene(
