@@ -22,6 +22,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -34,7 +35,7 @@ from calib.boards import to_gray
 from calib.features import edge_field, lidar_edges
 from rig.camera import CameraModel
 from rig.errors import InputError
-from rig.pointcloud_io import PointCloud
+from rig.pointcloud_io import PointCloud, read_point_cloud
 from rig.transforms import distance_and_angle, make_transform, transform_points
 
 #: Images wider than this are downscaled to it; blur and edge widths below are in pixels at
@@ -107,6 +108,15 @@ class ExtrinsicResult:
             "n_edge_points": self.n_edge_points,
             **self.extra,
         }
+
+
+def read_pair(image_path: Path, cloud_path: Path) -> ExtrinsicPair:
+    """An image file (colour, any format OpenCV reads) and a point-cloud file
+    (:func:`rig.pointcloud_io.read_point_cloud`) as one pair."""
+    picture = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
+    if picture is None:
+        raise InputError("cannot read the image", path=image_path)
+    return ExtrinsicPair(picture, read_point_cloud(cloud_path))
 
 
 def apply_increment(x: np.ndarray, T_init: np.ndarray) -> np.ndarray:

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from calib.kitti_frames import read_kitti_frame
 from calib.targetless import ExtrinsicPair, refine_extrinsic
 from rig.camera import CameraModel
-from rig.kitti import kitti_camera, read_kitti_calib
 from rig.pointcloud_io import PointCloud, read_point_cloud
 from rig.transforms import distance_and_angle
 
@@ -97,14 +97,8 @@ def _check_pair(real_data: Path, name: str, seed: int) -> None:
 def load_kitti(root: Path, frames: list[int]) -> tuple[list[ExtrinsicPair], CameraModel, np.ndarray]:
     """Image + Velodyne pairs of KITTI frames sharing one calibration, the rectified left colour
     camera and its reference ``T_cam_velo``."""
-    folder = root / "kitti_frames"
-    pairs = []
-    for frame in frames:
-        image = cv2.imread(str(folder / "image_2" / f"{frame:06d}.png"))
-        pairs.append(ExtrinsicPair(image, read_point_cloud(folder / "velodyne" / f"{frame:06d}.bin")))
-    calib = read_kitti_calib(folder / "calib" / f"{frames[0]:06d}.txt")
-    camera, T_ref = kitti_camera(calib, image.shape[1], image.shape[0])
-    return pairs, camera, T_ref
+    read = [read_kitti_frame(root / "kitti_frames", f"{frame:06d}") for frame in frames]
+    return [pair for pair, _, _ in read], read[0][1], read[0][2]
 
 
 @pytest.mark.slow
