@@ -136,27 +136,20 @@ def extrinsic(
     Only an estimate with verdict ok replaces the guess in --out (as `lts calibrate SESSION`
     does); otherwise --out keeps the --init extrinsic and its quality block says why, unless
     --force. The JSON's T_cam_lidar is always the estimate."""
-    import cv2
 
     from calib.board_session import board_geometry
     from calib.overlay import write_comparison
     from calib.target_based import board_observations, calibrate_with_board
-    from calib.targetless import ExtrinsicPair, refine_extrinsic
+    from calib.targetless import read_pair, refine_extrinsic
     from rig.calibration import load_calibration, save_calibration
     from rig.errors import InputError
-    from rig.pointcloud_io import read_point_cloud
 
     if len(image) != len(points):
         raise InputError(
             f"{len(image)} --image but {len(points)} --points; give one cloud per image", field="--points"
         )
     start = load_calibration(init)
-    pairs = []
-    for image_path, cloud_path in zip(image, points, strict=True):
-        picture = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
-        if picture is None:
-            raise InputError("cannot read the image", path=image_path)
-        pairs.append(ExtrinsicPair(picture, read_point_cloud(cloud_path)))
+    pairs = [read_pair(i, c) for i, c in zip(image, points, strict=True)]
     if board is None:
         result = refine_extrinsic(pairs, start.camera, start.T_cam_lidar)
     else:
@@ -246,8 +239,10 @@ def session_command(
     init: Path | None = typer.Option(
         None,
         "--init",
-        help="calib.yaml with a rough T_cam_lidar (enables the targetless extrinsic); without it, a bag's "
-        "/tf_static transform between the image's and the point cloud's frames is the rough guess.",
+        help="calib.yaml with a rough T_cam_lidar for the targetless extrinsic to start from; without "
+        "it, a bag's /tf_static transform between the image's and the point cloud's frames, else the "
+        "rotation that maps the LiDAR's angular velocity onto the camera's with a zero translation "
+        "(needs a recording that turns; rough: 1.4-1.8 deg on the virtual room).",
     ),
     lidar_motion: str = typer.Option("auto", "--lidar-motion", help="imu, odometry or auto (see `time`)."),
     board: str | None = typer.Option(
@@ -266,8 +261,8 @@ def session_command(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Calibrate what a recording supports (also: lts calibrate RECORDING... --out ...): camera
-    model, time offset, and with a rough extrinsic (--init, or a bag's /tf_static) the extrinsic
-    (target-based with --board, else targetless)."""
+    model, time offset, and the extrinsic (target-based with --board, else targetless) from a rough
+    one (--init, a bag's /tf_static, else found from the motion)."""
     from calib.board_session import board_geometry
     from calib.session_calib import calibrate_session, report_lines
     from rig.calibration import load_calibration, save_calibration

@@ -16,7 +16,7 @@ import numpy as np
 from calib.board_session import BoardGeometry, calibrate_board_session
 from calib.motion import camera_angular_velocity, imu_angular_velocity, lidar_angular_velocity
 from calib.session_data import SessionData, frame_clouds, frame_times, load_session
-from calib.targetless import ExtrinsicPair, refine_extrinsic
+from calib.targetless import ExtrinsicPair, ExtrinsicResult, refine_extrinsic
 from calib.time_offset import TimeOffsetResult, estimate_time_offset
 from rig.calibration import Calibration
 from rig.camera import CameraModel
@@ -81,6 +81,39 @@ def extrinsic_pairs(
     ]
 
 
+#: Where a rough extrinsic found from the recording alone comes from (``extrinsic_init``).
+MOTION_GUESS = "no guess given: rotation from the motion (camera vs LiDAR angular velocity), translation 0"
+
+
+def motion_guess(time_result: TimeOffsetResult) -> np.ndarray | None:
+    """A rough ``T_cam_lidar`` ``(4, 4)`` from the recording alone: the rotation that maps the
+    LiDAR's angular velocity onto the camera's (fitted with the time offset, hand-eye on rates)
+    and a zero translation (one rig's sensors sit within decimetres of each other). None when the
+    motion did not pin the time offset (too little rotation), since the rotation then means nothing.
+    """
+    rotation = time_result.extra.get("R_cam_lidar_from_motion")
+    if time_result.verdict != "ok" or rotation is None:
+        return None
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(rotation, dtype=np.float64)
+    return T
+
+
+def session_extrinsic(
+    data: SessionData,
+    camera: CameraModel,
+    time_offset_s: float,
+    motion: tuple[np.ndarray, np.ndarray] | None,
+    T_init: np.ndarray,
+    board: BoardGeometry | None = None,
+) -> ExtrinsicResult:
+    """The extrinsic step of :func:`calibrate_session`: from the chessboard ``board`` when given,
+    else targetless on :func:`extrinsic_pairs`, starting at the rough ``T_init`` ``(4, 4)``."""
+    if board is not None:
+        return calibrate_board_session(data, camera, board, time_offset_s, T_init)
+    return refine_extrinsic(extrinsic_pairs(data, time_offset_s, motion), camera, T_init)
+
+
 def calibrate_session(
     path: Recording | str | Path,
     init: Calibration | None = None,
@@ -88,11 +121,12 @@ def calibrate_session(
     topics: dict[str, str] | None = None,
     board: BoardGeometry | None = None,
 ) -> tuple[Calibration, dict[str, Any]]:
-    """Everything a recording supports: camera model, time offset and, with a rough
-    ``T_cam_lidar`` (``init``'s, else the recording's ``/tf_static`` one), the extrinsic — from
-    the chessboard ``board`` when given, else targetless. A time offset or extrinsic whose verdict
-    is not ``ok`` is reported but not applied (the calibration keeps the rough one). Returns the
-    calibration and a report (``extrinsic_init`` says where the rough extrinsic came from)."""
+    """Everything a recording supports: camera model, time offset and the extrinsic — from the
+    chessboard ``board`` when given, else targetless — starting at a rough ``T_cam_lidar``:
+    ``init``'s, else the recording's ``/tf_static`` one, else :func:`motion_guess`. A time offset
+    or extrinsic whose verdict is not ``ok`` is reported but not applied (the calibration keeps
+    the rough one). Returns the calibration and a report (``extrinsic_init`` says where the rough
+    extrinsic came from)."""
     recording = as_recording(path)
     data = load_session(recording, topics)
     camera = data.camera or (init.camera if init is not None else None)
@@ -124,17 +158,20 @@ def calibrate_session(
     if time_result.verdict == "ok":
         calibration.time_offset_s = time_result.time_offset_s
 
-    if init is None:
+    T_init = init.T_cam_lidar if init is not None else motion_guess(time_result)
+    if T_init is None:
         report["extrinsic"] = {
             "verdict": "not run",
-            "reasons": ["the extrinsic needs a rough T_cam_lidar (--init, or /tf_static in a bag)"],
+            "reasons": [
+                "no rough T_cam_lidar: give --init (or a bag with /tf_static), or record with "
+                "enough rotation for the motion to give one (the time offset above is not ok)"
+            ],
         }
     else:
-        if board is not None:
-            result = calibrate_board_session(data, camera, board, calibration.time_offset_s, init.T_cam_lidar)
-        else:
-            pairs = extrinsic_pairs(data, calibration.time_offset_s, motion)
-            result = refine_extrinsic(pairs, camera, init.T_cam_lidar)
+        if init is None:
+            report["extrinsic_init"] = MOTION_GUESS
+            calibration.T_cam_lidar = T_init.copy()
+        result = session_extrinsic(data, camera, calibration.time_offset_s, motion, T_init, board)
         report["extrinsic"] = result.to_json()
         # As with the time offset: a result that cannot vouch for itself does not replace the
         # guess (a refinement drifting away from a good start is what users of other tools meet).
@@ -147,13 +184,13 @@ def calibrate_session(
 
 def report_lines(report: dict[str, Any]) -> list[str]:
     """One line per step of a :func:`calibrate_session` report: its verdict, the reasons, and
-    whether the result was applied."""
+    whether the result was applied; after them, where the rough extrinsic came from."""
     lines = []
+    given = report.get("extrinsic_init")  # "--init", a /tf_static description, the motion, or absent
     for step in ("time", "extrinsic"):
         block = report[step]
-        given = report.get("extrinsic_init")  # "--init", a /tf_static description, or absent
         if step == "extrinsic":
-            kept = f"the value from {given}"
+            kept = "the rough one from the motion" if given == MOTION_GUESS else f"the value from {given}"
         else:
             kept = "the value from --init" if given == "--init" else "0 s"
         lines.append(
@@ -161,4 +198,6 @@ def report_lines(report: dict[str, Any]) -> list[str]:
             + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
             + (f" — not applied, {kept} is kept" if block.get("applied") is False else "")
         )
+    if given is not None:
+        lines.append(f"rough extrinsic: {given}")
     return lines

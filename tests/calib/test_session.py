@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from rig.calibration import Calibration, load_calibration, save_calibration
+from rig.transforms import distance_and_angle
 
 from .test_targetless import perturb
 
@@ -65,6 +66,32 @@ def test_session_command_writes_calibration(room_session: Path, tmp_path: Path) 
     print(f"session calibration took {elapsed:.1f} s; extrinsic: {summary['extrinsic']['verdict']}")
 
 
+def test_session_without_a_guess_starts_from_the_motion(room_session: Path, tmp_path: Path) -> None:
+    """No --init and no /tf_static: the rough extrinsic is the rotation between the sensors'
+    angular velocities with a zero translation, and the report says so."""
+    from calib.session_calib import MOTION_GUESS
+
+    truth = load_calibration(room_session / "ground_truth" / "calib.yaml")
+    out = tmp_path / "calib.yaml"
+    result = _lts("calibrate", room_session / "session.mcap", "--out", out, "--json")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["extrinsic_init"] == MOTION_GUESS
+    extrinsic = summary["extrinsic"]
+    translation_m, angle = distance_and_angle(np.asarray(extrinsic["T_cam_lidar"]), truth.T_cam_lidar)
+    rotation_deg = np.degrees(angle)
+    # Honest whichever way it ends: ok only when right.
+    if extrinsic["verdict"] == "ok":
+        assert rotation_deg < 0.5 and translation_m < 0.05
+        assert extrinsic["applied"]
+    else:
+        assert not extrinsic["applied"] and extrinsic["reasons"]
+    written = load_calibration(out)
+    # The motion's rotation (1.8° off on this run), or better where the refinement vouched for itself.
+    assert np.degrees(distance_and_angle(written.T_cam_lidar, truth.T_cam_lidar)[1]) < 3.0
+    print(f"no guess: {extrinsic['verdict']}, estimate {rotation_deg:.2f}° {100 * translation_m:.1f} cm")
+
+
 def test_straight_drive_refuses_time_offset(room_session: Path, tmp_path: Path) -> None:
     # Drive 1.8 m straight ahead from the room run's first pose, without turning.
     first = np.loadtxt(room_session / "ground_truth" / "trajectory.tum")[0]
@@ -84,6 +111,12 @@ def test_straight_drive_refuses_time_offset(room_session: Path, tmp_path: Path) 
     summary = json.loads(result.stdout)
     assert summary["verdict"] == "poorly constrained"
     assert summary["reasons"]
+    # Nor can the motion give a rough extrinsic: without --init the extrinsic is not run, and says why.
+    result = _lts("calibrate", run / "session.mcap", "--out", tmp_path / "calib.yaml", "--json")
+    assert result.returncode == 0, result.stderr
+    extrinsic = json.loads(result.stdout)["extrinsic"]
+    assert extrinsic["verdict"] == "not run"
+    assert "--init" in extrinsic["reasons"][0]
 
 
 def test_odometry_offset_within_2_ms(room_session: Path) -> None:
