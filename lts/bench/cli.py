@@ -154,6 +154,69 @@ def bench_noise_command(
     _finish(bench_noise(bench, out, noise, preset, _log), json_out)
 
 
+@bench_app.command("calib")
+def bench_calib_command(
+    sim: list[str] = typer.Option(
+        ["room"], "--sim", help="Virtual-rig presets to simulate (repeat: --sim room --sim street)."
+    ),
+    seeds: int = typer.Option(3, "--seeds", min=1, help="Sessions per preset: seeds 0 to N-1."),
+    guess: list[str] = typer.Option(
+        None,
+        "--guess",
+        help="Initial guesses: DEG/CM (the truth turned DEG degrees about a random axis and moved CM "
+        "cm in a random direction) or none (the recording alone). Repeat; default 0/0, 2/10, 10/30 "
+        "and none.",
+    ),
+    duration: float = typer.Option(10.0, "--duration", min=2.0, help="Seconds of each simulated session."),
+    kitti_frames: Path | None = typer.Option(
+        None,
+        "--kitti-frames",
+        help="Also each frame of a folder in KITTI's object layout (calib/NAME.txt, image_2/NAME.png, "
+        "velodyne/NAME.bin; reference: its target-based calibration), one frame at a time.",
+    ),
+    out: Path = OUT_OPTION,
+    json_out: bool = JSON_OPTION,
+) -> None:
+    """Calibration from a recording: accuracy, success rate, honesty of the verdict and coverage of
+    the reported spread of the targetless extrinsic (and the time offset), over seeds × guesses."""
+    from calib.kitti_frames import kitti_frame_names
+    from lts.bench.calibration import DEFAULT_GUESSES, bench_calib, parse_guess
+    from rig.sim.scenes import get_preset
+
+    guesses = [parse_guess(g) for g in guess or DEFAULT_GUESSES]
+    for preset in sim:
+        get_preset(preset)  # an unknown preset stops here, before any session is simulated
+    if kitti_frames is not None:
+        kitti_frame_names(kitti_frames)  # a folder without frames stops here, before any simulation
+    result = bench_calib(sim, range(seeds), guesses, duration, out / "calib", _log, kitti_frames)
+    _print_calib(result)
+    _finish(result, json_out)
+
+
+def _print_calib(result: dict) -> None:
+    from rich.table import Table
+
+    table = Table(title=f"extrinsic calibration ({len(result['seeds'])} seeds a preset, "
+                  f"success: within {result['success_bounds']['rotation_deg']}° and "
+                  f"{100 * result['success_bounds']['translation_m']:g} cm)")  # fmt: skip
+    for column in ("source", "guess", "° med/max", "cm med/max", "success", "ok (wrong)", "in 95 %", "s"):
+        table.add_column(column, no_wrap=True)
+    for source, by_guess in result["summary"].items():
+        for label, row in by_guess.items():
+            rot, trans = row["rotation_error_deg"], row["translation_error_m"]
+            table.add_row(
+                source,
+                label,
+                f"{rot['median']:.2f}/{rot['max']:.2f}" if rot else "not run",
+                f"{100 * trans['median']:.1f}/{100 * trans['max']:.1f}" if trans else "",
+                f"{row['success_rate']:.0%}",
+                f"{row['ok']} ({row['false_ok']})",
+                "" if row["coverage_95"] is None else f"{row['coverage_95']:.0%}",
+                "" if row["median_seconds"] is None else f"{row['median_seconds']:.1f}",
+            )
+    console.print(table)
+
+
 @bench_app.command("raster")
 def bench_raster(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
