@@ -161,6 +161,7 @@ def _session_rows(
         "source": preset,
         "seed": seed,
         "time_verdict": time_result.verdict,
+        "time_reasons": time_result.reasons,
         "time_offset_error_ms": abs(time_result.time_offset_s - truth.time_offset_s) * 1e3
         if time_result.verdict == "ok"
         else None,
