@@ -36,7 +36,7 @@ INTERVAL_95 = 1.96
 NO_GUESS = "none"
 DEFAULT_GUESSES = ("0/0", "2/10", "10/30", NO_GUESS)
 #: The source name of the KITTI object-layout frames in the table.
-KITTI_SOURCE = "kitti frames"
+KITTI_SOURCE = "kitti"
 
 
 @dataclass(frozen=True)

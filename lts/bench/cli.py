@@ -157,7 +157,10 @@ def bench_noise_command(
 @bench_app.command("calib")
 def bench_calib_command(
     sim: list[str] = typer.Option(
-        ["room"], "--sim", help="Virtual-rig presets to simulate (repeat: --sim room --sim street)."
+        None,
+        "--sim",
+        help="Virtual-rig presets to simulate (repeat: --sim room --sim street); default room, none "
+        "when only --kitti-frames is given.",
     ),
     seeds: int = typer.Option(3, "--seeds", min=1, help="Sessions per preset: seeds 0 to N-1."),
     guess: list[str] = typer.Option(
@@ -184,6 +187,7 @@ def bench_calib_command(
     from rig.sim.scenes import get_preset
 
     guesses = [parse_guess(g) for g in guess or DEFAULT_GUESSES]
+    sim = sim or ([] if kitti_frames is not None else ["room"])
     for preset in sim:
         get_preset(preset)  # an unknown preset stops here, before any session is simulated
     if kitti_frames is not None:
@@ -196,10 +200,11 @@ def bench_calib_command(
 def _print_calib(result: dict) -> None:
     from rich.table import Table
 
-    table = Table(title=f"extrinsic calibration ({len(result['seeds'])} seeds a preset, "
-                  f"success: within {result['success_bounds']['rotation_deg']}° and "
-                  f"{100 * result['success_bounds']['translation_m']:g} cm)")  # fmt: skip
-    for column in ("source", "guess", "° med/max", "cm med/max", "success", "ok (wrong)", "in 95 %", "s"):
+    bounds = result["success_bounds"]
+    title = (f"extrinsic error from each guess (success: within {bounds['rotation_deg']}° and "
+             f"{100 * bounds['translation_m']:g} cm; ok/wrong: ok verdicts, those beyond it)")  # fmt: skip
+    table = Table(box=None, title=title)
+    for column in ("source", "guess", "° med/max", "cm med/max", "success", "ok/wrong", "in 95%", "s"):
         table.add_column(column, no_wrap=True)
     for source, by_guess in result["summary"].items():
         for label, row in by_guess.items():
@@ -210,7 +215,7 @@ def _print_calib(result: dict) -> None:
                 f"{rot['median']:.2f}/{rot['max']:.2f}" if rot else "not run",
                 f"{100 * trans['median']:.1f}/{100 * trans['max']:.1f}" if trans else "",
                 f"{row['success_rate']:.0%}",
-                f"{row['ok']} ({row['false_ok']})",
+                f"{row['ok']}/{row['false_ok']}",
                 "" if row["coverage_95"] is None else f"{row['coverage_95']:.0%}",
                 "" if row["median_seconds"] is None else f"{row['median_seconds']:.1f}",
             )

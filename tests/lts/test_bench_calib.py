@@ -105,4 +105,4 @@ def test_bench_runs_each_kitti_frame_alone(real_data, tmp_path):
             assert row["init_rotation_error_deg"] == pytest.approx(2.0)
             assert row["init_translation_error_m"] == pytest.approx(0.10)
             assert row["false_ok"] is False
-    assert result["sources"] == ["kitti frames"]
+    assert result["sources"] == ["kitti"]
