@@ -1,13 +1,14 @@
 """Benchmark of the calibration from a recording: the targetless extrinsic and the time offset on
-virtual-rig sessions, over seeds × initial guesses.
+virtual-rig sessions over seeds × initial guesses, and the extrinsic on single frames in KITTI's
+object layout against the dataset's reference.
 
 Each session is simulated once (reused while up to date), its time offset estimated once, then the
 extrinsic refined from every guess: the truth turned by a given angle about a random axis and moved
 by a given distance in a random direction (both drawn from the session's seed), or no guess at all
 (:func:`calib.session_calib.motion_guess`). Per trial it records the error against the truth, the
-verdict, the reported spread and the seconds; per preset and guess: the median and largest error,
-the share of successes, ``ok`` verdicts given while wrong, and how often the truth lies inside the
-reported 95 % interval. Writes ``bench_calib.json`` and ``bench_calib.png``.
+verdict, the reported spread and the seconds; per source (preset or KITTI) and guess: the median
+and largest error, the share of successes, ``ok`` verdicts given while wrong, and how often the
+truth lies inside the reported 95 % interval. Writes ``bench_calib.json`` and ``bench_calib.png``.
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ class Guess:
 
     @property
     def label(self) -> str:
+        """How the table names it: ``10°/30 cm`` or ``none``."""
         return NO_GUESS if self.degrees is None else f"{self.degrees:g}°/{self.centimetres:g} cm"
 
 
