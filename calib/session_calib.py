@@ -82,7 +82,10 @@ def extrinsic_pairs(
 
 
 #: Where a rough extrinsic found from the recording alone comes from (``extrinsic_init``).
-MOTION_GUESS = "no guess given: rotation from the motion (camera vs LiDAR angular velocity), translation 0"
+MOTION_GUESS = (
+    "the motion (no guess given: the rotation between the camera's and the LiDAR's angular "
+    "velocities, translation 0)"
+)
 
 
 def motion_guess(time_result: TimeOffsetResult) -> np.ndarray | None:
@@ -190,7 +193,7 @@ def report_lines(report: dict[str, Any]) -> list[str]:
     for step in ("time", "extrinsic"):
         block = report[step]
         if step == "extrinsic":
-            kept = "the rough one from the motion" if given == MOTION_GUESS else f"the value from {given}"
+            kept = f"the value from {given}"
         else:
             kept = "the value from --init" if given == "--init" else "0 s"
         lines.append(

@@ -173,9 +173,10 @@ def _session_rows(
     def refine(T_init: np.ndarray) -> ExtrinsicResult:
         return session_extrinsic(data, data.camera, offset, motion, T_init)
 
+    motion_start = motion_guess(time_result)
     rows = []
     for guess in guesses:
-        T_init = _guess_for(guess, truth.T_cam_lidar, seed, motion_guess(time_result))
+        T_init = _guess_for(guess, truth.T_cam_lidar, seed, motion_start)
         rows.append({**session, "guess": guess.label, **_trial(refine, truth.T_cam_lidar, T_init)})
         log(_trial_line(rows[-1]))
     return rows
