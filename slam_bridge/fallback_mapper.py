@@ -17,7 +17,13 @@ import trimesh
 
 from rig.deskew import deskewed_points
 from rig.errors import InputError
-from rig.lidar_odometry import MAP_VOXELS_PER_VOXEL, SweepOdometry, nearest_rotation
+from rig.lidar_odometry import (
+    MAP_VOXELS_PER_VOXEL,
+    SweepOdometry,
+    nearest_rotation,
+    thinned,
+    voxel_for_ranges,
+)
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, make_transform, transform_points
@@ -36,13 +42,6 @@ _CUBE_FACES = [
 ]
 
 
-#: The odometry voxel as a fraction of the 95th-percentile range of the first sweep. The time of
-#: registration falls steeply with the voxel (it sets how many points are matched) and so does the
-#: accuracy beyond a scene-dependent size. Virtual rig, one registration pass, ATE after alignment:
-#: room (95th percentile 5.9 m) 0.10 / 0.13 / 0.165 m voxels: 0.83 / 0.89 / 0.91 cm at
-#: 154 / 78 / 41 ms per sweep; 64-beam street (22 m): 0.33 / 0.5 / 0.6 m: 9.8 / 10.3 / 7.6 cm
-#: over 20 s, but 0.6 m lost the car in the first 7.8 s (ATE 2.6 m). 1/60 gives 0.10 and 0.36 m.
-VOXEL_PER_RANGE = 1 / 60
 #: The TSDF voxel as a fraction of the same range, never below MIN_TSDF_VOXEL_M (the rooms' value).
 #: A voxel much smaller than the spacing of a spinning LiDAR's rings at range leaves the mesh in
 #: stripes: on the 64-beam street (95th percentile 22 m) 0.04 m voxels cover 17 % of the test
@@ -65,7 +64,8 @@ class MapperConfig:
         min_range_m, max_range_m: points outside are ignored.
         min_weight: voxels observed fewer times are left out of the mesh (removes one-off noise).
         dynamic: the see-through test that keeps moving objects out of the mesh (None: off).
-        max_points_per_sweep: larger sweeps are thinned (:func:`thinned`) before anything else:
+        max_points_per_sweep: larger sweeps are thinned (:func:`~rig.lidar_odometry.thinned`)
+            before anything else:
             every step costs in proportion to the points, and a 64-beam sweep has 4 to 5 times
             more than its registration and see-through test need. It costs the mesh detail: on 78
             sweeps of the virtual street with the HDL-64E's 125k points, the mapper takes 4.6 /
@@ -97,11 +97,11 @@ class MapperResult:
 
 def odometry_voxel(ranges: np.ndarray, config: MapperConfig) -> float:
     """The odometry's voxel size (each sweep is downsampled to it) for sweeps whose first usable
-    ranges are ``ranges`` ``(N,)`` (m): ``config.voxel_size_m``, else :data:`VOXEL_PER_RANGE` of
-    their 95th percentile within 0.1–1 m."""
+    ranges are ``ranges`` ``(N,)`` (m): ``config.voxel_size_m``, else
+    :func:`~rig.lidar_odometry.voxel_for_ranges`."""
     if config.voxel_size_m is not None:
         return config.voxel_size_m
-    return float(np.clip(VOXEL_PER_RANGE * np.percentile(ranges, 95), 0.1, 1.0))
+    return voxel_for_ranges(ranges)
 
 
 def tsdf_voxel(ranges: np.ndarray, config: MapperConfig) -> float:
@@ -347,17 +347,6 @@ def _deskewed_sweeps(
             progress(index)
     if len(poses) >= 2:
         yield deskew_pending(-1)
-
-
-def thinned(count: int, budget: int) -> np.ndarray | slice:
-    """Indices of at most about ``budget`` of ``count`` points, spread evenly over the sweep
-    whatever its order: point ``i`` is kept where the fractional part of ``i`` times the golden
-    ratio falls below ``budget / count`` (every k-th point would keep every k-th ring of a sweep
-    stored column by column, as the virtual rig's and Ouster's are). All of them when
-    ``count <= budget``."""
-    if count <= budget:
-        return slice(None)
-    return np.flatnonzero(np.mod(np.arange(count) * 0.6180339887498949, 1.0) < budget / count)
 
 
 def extended_at_both_ends(t_ns: np.ndarray, poses: np.ndarray) -> Trajectory:

@@ -10,6 +10,7 @@ import trimesh
 
 from eval.geometry import compare_meshes
 from eval.trajectory_metrics import absolute_trajectory_error
+from rig.lidar_odometry import thinned
 from rig.session import SessionReader
 from rig.trajectory_io import read_tum
 from slam_bridge.fallback_mapper import (
@@ -18,7 +19,6 @@ from slam_bridge.fallback_mapper import (
     extended_at_both_ends,
     fill_small_holes,
     run_mapper,
-    thinned,
 )
 from slam_bridge.slam_dir import load_slam_dir
 
