@@ -14,7 +14,9 @@ from typing import Any
 import numpy as np
 
 from calib.board_session import BoardGeometry, calibrate_board_session
+from calib.lidar_map import LidarMap, build_lidar_map
 from calib.motion import camera_angular_velocity, imu_angular_velocity, lidar_angular_velocity
+from calib.photo_consistency import ConsistencyFrame, photo_consistency_extrinsic
 from calib.session_data import SessionData, frame_clouds, frame_times, load_session
 from calib.targetless import ExtrinsicPair, ExtrinsicResult, refine_extrinsic
 from calib.time_offset import TimeOffsetResult, estimate_time_offset
@@ -24,8 +26,10 @@ from rig.errors import InputError
 from rig.session import DEFAULT_TOPICS, Recording, as_recording
 from rig.session.tf_static import tf_extrinsic
 
-#: Image + LiDAR pairs used for the targetless extrinsic.
+#: Image + LiDAR pairs of the one-pair-at-a-time targetless extrinsic (a recording too short for a
+#: LiDAR map), and the frames of the photo-consistency one.
 EXTRINSIC_PAIRS = 6
+CONSISTENCY_FRAMES = 20
 LIDAR_MOTION = ("auto", "imu", "odometry")
 
 
@@ -52,12 +56,14 @@ def calibrate_time(
     return result, (t_cam, np.linalg.norm(w_cam, axis=1))
 
 
-def calm_frames(data: SessionData, motion: tuple[np.ndarray, np.ndarray] | None = None) -> list[int]:
-    """Indices of ``EXTRINSIC_PAIRS`` frames spread over the session; with the camera's angular
-    speed ``motion`` (times, speeds), each is the calmest frame of its stretch."""
+def calm_frames(
+    data: SessionData, motion: tuple[np.ndarray, np.ndarray] | None = None, count: int = EXTRINSIC_PAIRS
+) -> list[int]:
+    """Indices of ``count`` frames spread over the session; with the camera's angular speed
+    ``motion`` (times, speeds), each is the calmest frame of its stretch."""
     frame_t = frame_times(data)
     chosen = []
-    for stretch in np.array_split(np.arange(len(frame_t)), EXTRINSIC_PAIRS + 2)[1:-1]:
+    for stretch in np.array_split(np.arange(len(frame_t)), count + 2)[1:-1]:
         if not len(stretch):
             continue
         index = int(stretch[len(stretch) // 2])
@@ -102,6 +108,33 @@ def motion_guess(time_result: TimeOffsetResult) -> np.ndarray | None:
     return T
 
 
+def session_lidar_map(data: SessionData) -> LidarMap | None:
+    """The recording's LiDAR map (:func:`calib.lidar_map.build_lidar_map`), or None when it has
+    fewer than two usable sweeps."""
+    try:
+        return build_lidar_map(data.scans)
+    except InputError:
+        return None
+
+
+def consistency_frames(
+    data: SessionData,
+    lidar_map: LidarMap,
+    time_offset_s: float,
+    motion: tuple[np.ndarray, np.ndarray] | None = None,
+) -> list[ConsistencyFrame]:
+    """:data:`CONSISTENCY_FRAMES` :func:`calm_frames` within the map's trajectory, each with the
+    LiDAR's pose when it was taken (camera stamps moved onto the LiDAR clock by the offset)."""
+    indices = calm_frames(data, motion, CONSISTENCY_FRAMES)
+    t_ns = np.round((frame_times(data)[indices] - time_offset_s) * 1e9).astype(np.int64)
+    covered = lidar_map.trajectory.covers(t_ns)
+    poses = lidar_map.trajectory.interpolate(t_ns[covered]) if covered.any() else np.zeros((0, 4, 4))
+    return [
+        ConsistencyFrame(data.frames[i].image, pose)
+        for i, pose in zip(np.asarray(indices)[covered], poses, strict=True)
+    ]
+
+
 def session_extrinsic(
     data: SessionData,
     camera: CameraModel,
@@ -109,12 +142,19 @@ def session_extrinsic(
     motion: tuple[np.ndarray, np.ndarray] | None,
     T_init: np.ndarray,
     board: BoardGeometry | None = None,
+    lidar_map: LidarMap | None = None,
 ) -> ExtrinsicResult:
     """The extrinsic step of :func:`calibrate_session`: from the chessboard ``board`` when given,
-    else targetless on :func:`extrinsic_pairs`, starting at the rough ``T_init`` ``(4, 4)``."""
+    else targetless from the rough ``T_init`` ``(4, 4)``: photo-consistency of the recording's
+    LiDAR map over many frames (``lidar_map``, built here when not given), or one image + LiDAR
+    pair at a time (:func:`extrinsic_pairs`) when the recording has no map."""
     if board is not None:
         return calibrate_board_session(data, camera, board, time_offset_s, T_init)
-    return refine_extrinsic(extrinsic_pairs(data, time_offset_s, motion), camera, T_init)
+    lidar_map = lidar_map or session_lidar_map(data)
+    if lidar_map is None:
+        return refine_extrinsic(extrinsic_pairs(data, time_offset_s, motion), camera, T_init)
+    frames = consistency_frames(data, lidar_map, time_offset_s, motion)
+    return photo_consistency_extrinsic(frames, camera, lidar_map, T_init)
 
 
 def calibrate_session(

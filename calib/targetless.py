@@ -219,13 +219,16 @@ def _intensity_to_255(intensity: np.ndarray) -> np.ndarray:
     return np.clip(intensity / max(float(top), 1e-9) * 255.0, 0, 255)
 
 
-def _pixels(width_at_work_width: float, view: _View) -> float:
-    """A blur or edge width given at WORK_WIDTH, in pixels of this view's working image (>= 0.5)."""
-    return max(0.5, width_at_work_width * view.gray.shape[1] / WORK_WIDTH)
+def working_pixels(width_at_work_width: float, image_width: int) -> float:
+    """A blur or edge width given at :data:`WORK_WIDTH`, in pixels of a working image
+    ``image_width`` wide (at least 0.5)."""
+    return max(0.5, width_at_work_width * image_width / WORK_WIDTH)
 
 
-def _prepare(pair: ExtrinsicPair, camera: CameraModel, T_init: np.ndarray) -> _View:
-    gray = to_gray(pair.image)
+def working_image(image: np.ndarray, camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+    """An image ``(H, W[, 3])`` uint8 in grey, undistorted and downscaled to at most
+    :data:`WORK_WIDTH` wide, and the pinhole camera matrix ``(3, 3)`` of the result."""
+    gray = to_gray(image)
     if gray.shape != (camera.height, camera.width):
         raise InputError(
             f"image is {gray.shape[1]}x{gray.shape[0]}, the camera model says {camera.width}x{camera.height}",
@@ -242,6 +245,11 @@ def _prepare(pair: ExtrinsicPair, camera: CameraModel, T_init: np.ndarray) -> _V
     K = camera.K.copy()
     K[:2] *= scale
     K[:2, 2] += 0.5 * scale - 0.5  # pixel centres at integers in both images
+    return small, K
+
+
+def _prepare(pair: ExtrinsicPair, camera: CameraModel, T_init: np.ndarray) -> _View:
+    small, K = working_image(pair.image, camera)
     cloud = pair.cloud
     # Points that could land in the image near the initial guess (margin for the search range).
     margin = -0.1 * camera.width
@@ -294,7 +302,7 @@ def refine_extrinsic(
     x = np.zeros(6)
     edge_init = edge_final = 0.0
     for sigma, half, step in EDGE_STAGES:
-        fields = [edge_field(v.gray, _pixels(sigma, v)) for v in views]
+        fields = [edge_field(v.gray, working_pixels(sigma, v.gray.shape[1])) for v in views]
 
         def edge_cost(y: np.ndarray, fields: list[np.ndarray] = fields) -> float:
             return _edge_cost(y, T_init, views, fields)
@@ -305,9 +313,15 @@ def refine_extrinsic(
         edge_final = -float(edge_cost(x))
 
     sigma, half, step = MI_STAGE
-    blurred = [cv2.GaussianBlur(v.gray, (0, 0), _pixels(sigma, v)).astype(np.float32) for v in views]
+    blurred = [
+        cv2.GaussianBlur(v.gray, (0, 0), working_pixels(sigma, v.gray.shape[1])).astype(np.float32)
+        for v in views
+    ]
     x = _grid_search(lambda y: _mi_cost(y, T_init, views, blurred), x, half, step)
-    fine = [cv2.GaussianBlur(v.gray, (0, 0), _pixels(MI_FINE_SIGMA, v)).astype(np.float32) for v in views]
+    fine = [
+        cv2.GaussianBlur(v.gray, (0, 0), working_pixels(MI_FINE_SIGMA, v.gray.shape[1])).astype(np.float32)
+        for v in views
+    ]
     bounds = [(xi - LOCAL_ROT_DEG, xi + LOCAL_ROT_DEG) for xi in x[:3]] + [
         (-LOCAL_TRANS_DM, LOCAL_TRANS_DM)
     ] * 3

@@ -1,0 +1,314 @@
+"""Targetless extrinsic from a recording: the LiDAR map must look the same in every camera frame.
+
+A map point seen by several frames has one colour; placed in the images with the wrong
+``T_cam_lidar`` (and the LiDAR's own poses from odometry), it lands on different things in each
+and its grey levels disagree. The cost is the spread of each point's grey level over the frames
+that see it, relative to the spread between points (so it cannot be lowered by moving every point
+onto one flat wall). Unlike edges or mutual information in one frame, this needs nothing from the
+LiDAR but geometry, and every frame's parallax constrains the translation.
+
+Coarse to fine over image blurs (:data:`BLUR_STAGES`), a derivative-free 6-DoF search per blur,
+each seeing the map points visible (z-buffer) in at least :data:`MIN_VIEWS` frames at its start.
+Grey levels are standardised per frame (auto-exposure), and the worst :data:`TRIM` of the points
+(moving objects, specular surfaces, points hidden by something the LiDAR missed) are left out of
+the mean. Uncertainty: a jackknife over stretches of frames (:func:`_covariance`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import minimize
+
+from calib.lidar_map import LidarMap
+from calib.targetless import ExtrinsicResult, apply_increment, working_image, working_pixels
+from rig.camera import CameraModel
+from rig.transforms import invert
+
+#: Gaussian blurs (pixels at the working width, 960) of the coarse-to-fine stages: the first
+#: ones let a guess 10° off find the way (10° is 170 px at 960 px for a 90° field of view).
+BLUR_STAGES = (32.0, 16.0, 8.0, 4.0, 2.0, 1.0)
+#: A point counts where at least this many frames see it.
+MIN_VIEWS = 3
+#: The worst fraction of points (largest spread over frames) left out of the cost.
+TRIM = 0.1
+#: A point is hidden when a map point within this window (working pixels, odd) is more than
+#: DEPTH_TOLERANCE = (relative, metres) in front of it.
+OCCLUSION_PX = 7
+DEPTH_TOLERANCE = (0.03, 0.03)
+#: Powell's tolerance per stage (degrees and decimetres): coarse stages only need to hand over.
+XTOL = (3e-2, 1e-2, 1e-2, 1e-2, 3e-3, 1e-3)
+#: Every how many map points a stage uses: a blurred image has less to say per point.
+STRIDE = (8, 4, 2, 2, 1, 1)
+#: Finite-difference steps (degrees, decimetres) and the stretches of frames of the jackknife.
+STEP = (0.05, 0.05)
+JACKKNIFE_GROUPS = 5
+MIN_FRAMES = 4
+MIN_POINTS = 2000
+#: Verdict limits on the standard deviations.
+MAX_ROT_STD_DEG = 0.15
+MAX_TRANS_STD_M = 0.015
+_POWELL = {"xtol": 1e-3, "ftol": 1e-6}
+METHOD = "targetless (photo-consistency of the LiDAR map over {} frames)"
+
+
+@dataclass(eq=False)
+class ConsistencyFrame:
+    """One camera image ``(H, W[, 3])`` uint8 and the LiDAR's pose ``T_world_lidar`` ``(4, 4)``
+    (the map's world) at the instant it was taken."""
+
+    image: np.ndarray
+    T_world_lidar: np.ndarray
+
+
+class _Problem:
+    """The frames' working images and the map in each frame's LiDAR coordinates."""
+
+    def __init__(self, frames: Sequence[ConsistencyFrame], camera: CameraModel, world: np.ndarray) -> None:
+        prepared = [working_image(frame.image, camera) for frame in frames]
+        self.grays = [gray.astype(np.float32) for gray, _ in prepared]
+        self.K = prepared[0][1]
+        self.height, self.width = self.grays[0].shape
+        #: (F, N, 3) map points in each frame's LiDAR frame (they do not depend on the extrinsic).
+        self.lidar_points = np.stack(
+            [world @ invert(f.T_world_lidar)[:3, :3].T + invert(f.T_world_lidar)[:3, 3] for f in frames]
+        )
+        self.images = self.grays
+
+    def blur(self, sigma: float) -> None:
+        """Sample blurred images from now on (``sigma`` at the working width)."""
+        pixels = working_pixels(sigma, self.width)
+        self.images = [cv2.GaussianBlur(g, (0, 0), pixels) for g in self.grays]
+
+    def visible(self, T: np.ndarray) -> np.ndarray:
+        """``(F, N)`` mask of map points in view and in front in each frame with ``T_cam_lidar``
+        ``T`` ``(4, 4)`` (z-buffer)."""
+        seen = np.zeros(self.lidar_points.shape[:2], dtype=bool)
+        kernel = np.ones((OCCLUSION_PX, OCCLUSION_PX), np.uint8)
+        for k, q in enumerate(self.lidar_points):
+            u, v, z, inside = _project(q @ T[:3, :3].T + T[:3, 3], self.K, self.width, self.height)
+            index = np.flatnonzero(inside)
+            row, col = np.rint(v[index]).astype(np.int64), np.rint(u[index]).astype(np.int64)
+            nearest = np.full((self.height, self.width), np.inf, dtype=np.float32)
+            np.minimum.at(nearest, (row, col), z[index].astype(np.float32))
+            # The map is sparse: a surface in front hides what lies behind it between its points.
+            nearest = cv2.erode(nearest, kernel)
+            front = z[index] <= nearest[row, col] * (1 + DEPTH_TOLERANCE[0]) + DEPTH_TOLERANCE[1]
+            seen[k, index[front]] = True
+        return seen
+
+    def observations(self, T: np.ndarray, frames: np.ndarray, stride: int = 1) -> _Observations:
+        """The map points (every ``stride``-th) that at least :data:`MIN_VIEWS` of ``frames``
+        (indices) see with ``T_cam_lidar`` ``T``, one observation per (frame, point)."""
+        visible = self.visible(T)[frames]
+        visible[:, visible.sum(axis=0) < MIN_VIEWS] = False
+        visible[:, np.arange(visible.shape[1]) % stride != 0] = False
+        rows, points = np.nonzero(visible)  # row-major: grouped by frame
+        map_index, compact = np.unique(points, return_inverse=True)
+        return _Observations(self.lidar_points[frames[rows], points], frames[rows], compact, map_index)
+
+    def spreads(self, T: np.ndarray, obs: _Observations) -> tuple[np.ndarray, float]:
+        """Each observed point's grey-level variance over the frames that see it ``(n_points,)``
+        (NaN where fewer than :data:`MIN_VIEWS` do), and the variance of the points' mean grey
+        levels, with ``T_cam_lidar`` ``T`` (grey levels standardised per frame)."""
+        u, v, _, inside = _project(obs.lidar_points @ T[:3, :3].T + T[:3, 3], self.K, self.width, self.height)
+        values = np.zeros(len(u), dtype=np.float64)
+        for k, (start, stop) in obs.frame_ranges.items():
+            map_u, map_v = u[start:stop, None].astype(np.float32), v[start:stop, None].astype(np.float32)
+            values[start:stop] = cv2.remap(
+                self.images[k], map_u, map_v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+            )[:, 0]
+        weight = inside.astype(np.float64)
+        # Standardised per frame: auto-exposure changes gain and offset between frames.
+        n_frame = np.maximum(np.bincount(obs.frame, weight, minlength=len(self.images)), 1)
+        mean = np.bincount(obs.frame, weight * values, minlength=len(self.images)) / n_frame
+        square = np.bincount(obs.frame, weight * values**2, minlength=len(self.images)) / n_frame
+        values = (values - mean[obs.frame]) / np.sqrt(np.maximum(square - mean**2, 1e-6))[obs.frame]
+        count = np.bincount(obs.point, weight, minlength=obs.n_points)
+        good = count >= MIN_VIEWS
+        count = np.maximum(count, 1)
+        point_mean = np.bincount(obs.point, weight * values, minlength=obs.n_points) / count
+        point_square = np.bincount(obs.point, weight * values**2, minlength=obs.n_points) / count
+        spread = np.where(good, np.maximum(point_square - point_mean**2, 0.0), np.nan)
+        return spread, float(np.var(point_mean[good])) if good.any() else 0.0
+
+    def cost(self, T: np.ndarray, obs: _Observations) -> float:
+        """The photo-inconsistency of the observed points with ``T_cam_lidar`` ``T``: the mean of
+        :meth:`spreads` over the points but the worst :data:`TRIM`, over the variance between
+        points (so that moving every point onto one flat wall does not pay)."""
+        spread, between = self.spreads(T, obs)
+        spread = spread[np.isfinite(spread)]
+        kept = int(len(spread) * (1 - TRIM))
+        if kept < MIN_POINTS // 4:
+            return 1e3
+        return float(np.partition(spread, kept - 1)[:kept].mean()) / max(between, 1e-9)
+
+
+class _Observations:
+    """Flat (frame, point) observations, grouped by frame: the point in the frame's LiDAR
+    coordinates ``(M, 3)``, the frame index ``(M,)``, the point's index ``(M,)`` among the
+    observed points, whose map indices are ``map_index`` ``(n_points,)``."""
+
+    def __init__(
+        self, lidar_points: np.ndarray, frame: np.ndarray, point: np.ndarray, map_index: np.ndarray
+    ) -> None:
+        self.lidar_points, self.frame, self.point, self.map_index = lidar_points, frame, point, map_index
+        self.n_points = len(map_index)
+        frames, starts = np.unique(frame, return_index=True)
+        stops = np.r_[starts[1:], len(frame)]
+        #: Each frame's ``[start, stop)`` in the flat arrays.
+        self.frame_ranges = {int(k): (int(a), int(b)) for k, a, b in zip(frames, starts, stops, strict=True)}
+
+
+def _project(
+    p: np.ndarray, K: np.ndarray, width: int, height: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Pinhole pixels ``u, v`` ``(M,)``, depths ``z`` and the in-image mask of camera points
+    ``(M, 3)`` (points closer than 5 cm count as outside)."""
+    z = p[:, 2]
+    safe = np.where(z > 0.05, z, 1.0)
+    u = K[0, 0] * p[:, 0] / safe + K[0, 2]
+    v = K[1, 1] * p[:, 1] / safe + K[1, 2]
+    inside = (z > 0.05) & (u >= 0) & (u <= width - 1) & (v >= 0) & (v <= height - 1)
+    return u, v, z, inside
+
+
+def _search(
+    problem: _Problem, T_init: np.ndarray, x: np.ndarray, frames: np.ndarray, xtol: float, stride: int
+) -> np.ndarray:
+    """Powell from increment ``x`` ``(6,)`` over ``frames`` (indices), with every ``stride``-th
+    map point visible at ``x``, to ``xtol`` (degrees / decimetres); returns the increment."""
+    obs = problem.observations(apply_increment(x, T_init), frames, stride)
+    options = {"xtol": xtol, "ftol": 1e-6}
+    return minimize(
+        lambda y: problem.cost(apply_increment(y, T_init), obs), x, method="Powell", options=options
+    ).x
+
+
+def _gradient_and_hessian(
+    cost: Callable[[np.ndarray], float], x: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Central finite differences of ``cost`` at ``x`` ``(6,)`` with steps :data:`STEP`: the
+    gradient ``(6,)`` and the Hessian ``(6, 6)``."""
+    step = np.r_[[STEP[0]] * 3, [STEP[1]] * 3]
+    eye = np.eye(6) * step
+    centre = cost(x)
+    plus, minus = np.array([cost(x + e) for e in eye]), np.array([cost(x - e) for e in eye])
+    hessian = np.diag((plus - 2 * centre + minus) / step**2)
+    for a, b in itertools.combinations(range(6), 2):
+        corners = [cost(x + sa * eye[a] + sb * eye[b]) for sa, sb in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
+        hessian[a, b] = hessian[b, a] = (corners[0] - corners[1] - corners[2] + corners[3]) / (
+            4 * step[a] * step[b]
+        )
+    return (plus - minus) / (2 * step), hessian
+
+
+def _covariance(problem: _Problem, T_init: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Covariance ``(6, 6)`` of the increment ``x`` (degrees, decimetres): a jackknife over
+    :data:`JACKKNIFE_GROUPS` stretches of consecutive frames, each left out in turn. The estimate
+    without a stretch is one Newton step of the cost without it from ``x`` (a full search would
+    wander along the cost's flat valleys and report its own stopping point rather than the data's
+    spread). Pose errors of the odometry and moving things differ from stretch to stretch, so this
+    sees more than the image noise."""
+    every = np.arange(len(problem.grays))
+    groups = np.array_split(every, min(JACKKNIFE_GROUPS, len(every)))
+    steps = []
+    for group in groups:
+        obs = problem.observations(apply_increment(x, T_init), np.setdiff1d(every, group))
+        gradient, hessian = _gradient_and_hessian(
+            lambda y, obs=obs: problem.cost(apply_increment(y, T_init), obs), x
+        )
+        # Only the curvature that holds the estimate: a direction the cost does not curve up in
+        # moves nothing (it shows in the other stretches' steps instead).
+        values, vectors = np.linalg.eigh(hessian)
+        inverse = vectors @ np.diag(np.where(values > 0, 1 / np.maximum(values, 1e-12), 0.0)) @ vectors.T
+        steps.append(-inverse @ gradient)
+    steps = np.array(steps)
+    g = len(groups)
+    centred = steps - steps.mean(axis=0)
+    return (g - 1) / g * centred.T @ centred
+
+
+def photo_consistency_extrinsic(
+    frames: Sequence[ConsistencyFrame], camera: CameraModel, lidar_map: LidarMap, T_init: np.ndarray
+) -> ExtrinsicResult:
+    """Refine ``T_cam_lidar`` ``(4, 4)`` from a rough guess so that the map's points look alike in
+    all ``frames``. Never raises on weak data: too few frames or points give the guess back with
+    a ``poorly constrained`` verdict and the reason."""
+    method = METHOD.format(len(frames))
+    problem = _Problem(frames, camera, lidar_map.points)
+    every = np.arange(len(frames))
+    x = np.zeros(6)
+    initial = problem.visible(T_init)
+    n_points = int((initial.sum(axis=0) >= MIN_VIEWS).sum())
+    if len(frames) < MIN_FRAMES or n_points < MIN_POINTS:
+        reason = (
+            f"only {len(frames)} frames and {n_points} map points seen by {MIN_VIEWS} of them near the "
+            f"initial guess; need {MIN_FRAMES} and {MIN_POINTS}"
+        )
+        return _result(T_init, T_init, "poorly constrained", [reason], (np.inf,) * 2, {}, n_points, method)
+
+    for sigma, xtol, stride in zip(BLUR_STAGES, XTOL, STRIDE, strict=True):
+        problem.blur(sigma)
+        x = _search(problem, T_init, x, every, xtol, stride)
+    T_best = apply_increment(x, T_init)
+    obs = problem.observations(T_best, every)
+    cost_init, cost_final = problem.cost(T_init, obs), problem.cost(T_best, obs)
+    std = np.sqrt(np.maximum(np.diag(_covariance(problem, T_init, x)), 0.0))
+    rot_std, trans_std = float(np.linalg.norm(std[:3])), float(np.linalg.norm(std[3:])) / 10.0
+    reasons = []
+    if cost_final >= cost_init:
+        reasons.append(
+            "the map's points agree no better across frames than at the initial guess: kept the guess"
+        )
+        x = np.zeros(6)
+    if rot_std > MAX_ROT_STD_DEG:
+        reasons.append(
+            f"rotation varies by ±{rot_std:.2f}° between stretches of frames (jackknife 1σ; limit "
+            f"{MAX_ROT_STD_DEG}°)"
+        )
+    if trans_std > MAX_TRANS_STD_M:
+        reasons.append(
+            f"translation varies by ±{trans_std * 100:.1f} cm between stretches of frames (jackknife "
+            f"1σ; limit {MAX_TRANS_STD_M * 100:.1f} cm)"
+        )
+    extra = {
+        "photo_consistency": {"init": cost_init, "final": cost_final},
+        "rotation_std_deg_xyz": (std[:3]).tolist(),
+        "translation_std_m_xyz": (std[3:] / 10.0).tolist(),
+        "frames": len(frames),
+    }
+    verdict = "poorly constrained" if reasons else "ok"
+    return _result(
+        apply_increment(x, T_init), T_init, verdict, reasons, (rot_std, trans_std), extra, n_points, method
+    )
+
+
+def _result(
+    T: np.ndarray,
+    T_init: np.ndarray,
+    verdict: str,
+    reasons: list[str],
+    stds: tuple[float, float],
+    extra: dict,
+    n_points: int,
+    method: str,
+) -> ExtrinsicResult:
+    return ExtrinsicResult(
+        T_cam_lidar=T.copy(),
+        T_init=T_init.copy(),
+        verdict=verdict,
+        reasons=reasons,
+        rotation_std_deg=stds[0],
+        translation_std_m=stds[1],
+        mutual_information={},
+        edge_score={},
+        n_points=n_points,
+        n_edge_points=0,
+        method=method,
+        extra=extra,
+    )
