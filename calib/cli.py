@@ -261,8 +261,9 @@ def session_command(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Calibrate what a recording supports (also: lts calibrate RECORDING... --out ...): camera
-    model, time offset, and the extrinsic (target-based with --board, else targetless) from a rough
-    one (--init, a bag's /tf_static, else found from the motion)."""
+    model, time offset, and the extrinsic (target-based with --board, else targetless: the LiDAR's
+    map must look alike in 20 frames of the recording) from a rough one (--init, a bag's
+    /tf_static, else found from the motion). Takes 1-3 minutes for the targetless extrinsic."""
     from calib.board_session import board_geometry
     from calib.session_calib import calibrate_session, report_lines
     from rig.calibration import load_calibration, save_calibration

@@ -42,8 +42,6 @@ OCCLUSION_PX = 7
 DEPTH_TOLERANCE = (0.03, 0.03)
 #: Powell's tolerance per stage (degrees and decimetres): coarse stages only need to hand over.
 XTOL = (3e-2, 1e-2, 1e-2, 1e-2, 3e-3, 1e-3)
-#: Every how many map points a stage uses: a blurred image has less to say per point.
-STRIDE = (8, 4, 2, 2, 1, 1)
 #: Finite-difference steps (degrees, decimetres) and the stretches of frames of the jackknife.
 STEP = (0.05, 0.05)
 JACKKNIFE_GROUPS = 5
@@ -101,12 +99,11 @@ class _Problem:
             seen[k, index[front]] = True
         return seen
 
-    def observations(self, T: np.ndarray, frames: np.ndarray, stride: int = 1) -> _Observations:
-        """The map points (every ``stride``-th) that at least :data:`MIN_VIEWS` of ``frames``
-        (indices) see with ``T_cam_lidar`` ``T``, one observation per (frame, point)."""
+    def observations(self, T: np.ndarray, frames: np.ndarray) -> _Observations:
+        """The map points that at least :data:`MIN_VIEWS` of ``frames`` (indices) see with
+        ``T_cam_lidar`` ``T``, one observation per (frame, point)."""
         visible = self.visible(T)[frames]
         visible[:, visible.sum(axis=0) < MIN_VIEWS] = False
-        visible[:, np.arange(visible.shape[1]) % stride != 0] = False
         rows, points = np.nonzero(visible)  # row-major: grouped by frame
         map_index, compact = np.unique(points, return_inverse=True)
         return _Observations(self.lidar_points[frames[rows], points], frames[rows], compact, map_index)
@@ -178,11 +175,11 @@ def _project(
 
 
 def _search(
-    problem: _Problem, T_init: np.ndarray, x: np.ndarray, frames: np.ndarray, xtol: float, stride: int
+    problem: _Problem, T_init: np.ndarray, x: np.ndarray, frames: np.ndarray, xtol: float
 ) -> np.ndarray:
-    """Powell from increment ``x`` ``(6,)`` over ``frames`` (indices), with every ``stride``-th
-    map point visible at ``x``, to ``xtol`` (degrees / decimetres); returns the increment."""
-    obs = problem.observations(apply_increment(x, T_init), frames, stride)
+    """Powell from increment ``x`` ``(6,)`` over ``frames`` (indices), with the points and
+    visibility at ``x``, to ``xtol`` (degrees / decimetres); returns the increment."""
+    obs = problem.observations(apply_increment(x, T_init), frames)
     options = {"xtol": xtol, "ftol": 1e-6}
     return minimize(
         lambda y: problem.cost(apply_increment(y, T_init), obs), x, method="Powell", options=options
@@ -252,9 +249,9 @@ def photo_consistency_extrinsic(
         )
         return _result(T_init, T_init, "poorly constrained", [reason], (np.inf,) * 2, {}, n_points, method)
 
-    for sigma, xtol, stride in zip(BLUR_STAGES, XTOL, STRIDE, strict=True):
+    for sigma, xtol in zip(BLUR_STAGES, XTOL, strict=True):
         problem.blur(sigma)
-        x = _search(problem, T_init, x, every, xtol, stride)
+        x = _search(problem, T_init, x, every, xtol)
     T_best = apply_increment(x, T_init)
     obs = problem.observations(T_best, every)
     cost_init, cost_final = problem.cost(T_init, obs), problem.cost(T_best, obs)

@@ -1,5 +1,6 @@
 """Calibrate from a recorded session: time offset from motion, then the extrinsic — from a
-chessboard seen in the session (target-based) or refined from a rough guess (targetless).
+chessboard seen in the session (target-based) or refined from a rough guess (targetless: the
+photo-consistency of the recording's LiDAR map over many frames, :mod:`calib.photo_consistency`).
 
 The camera model comes from the session's CameraInfo (or the initial calibration). The LiDAR
 motion signal is the gyro of the IMU on the LiDAR's clock when the session has one (Livox,
