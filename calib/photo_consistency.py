@@ -8,7 +8,8 @@ onto one flat wall). Unlike edges or mutual information in one frame, this needs
 LiDAR but geometry, and every frame's parallax constrains the translation.
 
 Coarse to fine over image blurs (:data:`BLUR_STAGES`), a derivative-free 6-DoF search per blur,
-each seeing the map points visible (z-buffer) in at least :data:`MIN_VIEWS` frames at its start.
+each seeing the map points visible (z-buffer) in at least :data:`MIN_VIEWS` frames at its start;
+then a scan along each axis for a deeper minimum (:func:`_out_of_the_valley`).
 Grey levels are standardised per frame (auto-exposure), and the worst :data:`TRIM` of the points
 (moving objects, specular surfaces, points hidden by something the LiDAR missed) are left out of
 the mean. Uncertainty: a jackknife over stretches of frames (:func:`_covariance`).
@@ -42,6 +43,14 @@ OCCLUSION_PX = 7
 DEPTH_TOLERANCE = (0.03, 0.03)
 #: Powell's tolerance per stage (degrees and decimetres): coarse stages only need to hand over.
 XTOL = (3e-2, 1e-2, 1e-2, 1e-2, 3e-3, 1e-3)
+#: How far from the guess the search may go (degrees and decimetres per axis): past the basin it
+#: is meant for (10° / 30 cm), short of places where the points project somewhere else entirely
+#: (unbounded, a 64-beam street's search ran 26-64 m away).
+SEARCH_REACH = (15.0, 5.0)
+BOUNDS = [(-SEARCH_REACH[0], SEARCH_REACH[0])] * 3 + [(-SEARCH_REACH[1], SEARCH_REACH[1])] * 3
+#: The result must see at least this fraction of the points the guess sees (a search that ran
+#: off to where the camera sees little of the map can look consistent).
+MIN_SEEN_FRACTION = 0.7
 #: The scans along each axis (:func:`_out_of_the_valley`): blur, reach (degrees and decimetres)
 #: and steps to each side.
 VALLEY_BLUR = 4.0
@@ -55,7 +64,6 @@ MIN_POINTS = 2000
 #: Verdict limits on the standard deviations.
 MAX_ROT_STD_DEG = 0.15
 MAX_TRANS_STD_M = 0.015
-_POWELL = {"xtol": 1e-3, "ftol": 1e-6}
 METHOD = "targetless (photo-consistency of the LiDAR map over {} frames)"
 
 
@@ -200,7 +208,11 @@ def _search(
     obs = problem.observations(apply_increment(x, T_init), frames)
     options = {"xtol": xtol, "ftol": 1e-6}
     return minimize(
-        lambda y: problem.cost(apply_increment(y, T_init), obs), x, method="Powell", options=options
+        lambda y: problem.cost(apply_increment(y, T_init), obs),
+        x,
+        method="Powell",
+        bounds=BOUNDS,
+        options=options,
     ).x
 
 
@@ -278,7 +290,8 @@ def _out_of_the_valley(problem: _Problem, T_init: np.ndarray, x: np.ndarray) -> 
     obs = problem.observations(apply_increment(x, T_init), every)
     problem.blur(VALLEY_BLUR)
     along = np.linspace(-VALLEY_REACH, VALLEY_REACH, 2 * VALLEY_STEPS + 1)
-    candidates = [x + a * np.eye(6)[axis] for axis in range(6) for a in along if a != 0]
+    low, high = np.array(BOUNDS).T
+    candidates = [np.clip(x + a * np.eye(6)[axis], low, high) for axis in range(6) for a in along if a != 0]
     costs = [problem.cost(apply_increment(y, T_init), obs) for y in candidates]
     here = problem.cost(apply_increment(x, T_init), obs)
     problem.blur(BLUR_STAGES[-1])
@@ -315,6 +328,18 @@ def photo_consistency_extrinsic(
     std = np.sqrt(np.maximum(np.diag(_covariance(problem, T_init, x)), 0.0))
     rot_std, trans_std = float(np.linalg.norm(std[:3])), float(np.linalg.norm(std[3:])) / 10.0
     reasons = []
+    seen = int((problem.visible(T_best).sum(axis=0) >= MIN_VIEWS).sum())
+    if seen < MIN_SEEN_FRACTION * n_points:
+        reasons.append(
+            f"the result sees {seen} map points in {MIN_VIEWS} frames, the guess {n_points}: the search "
+            "ran off to where little of the map is in view"
+        )
+    low, high = np.array(BOUNDS).T
+    if np.isclose(x, low, atol=1e-3).any() or np.isclose(x, high, atol=1e-3).any():
+        reasons.append(
+            f"the search reached its bound ({SEARCH_REACH[0]:.0f}° / {SEARCH_REACH[1] * 10:.0f} cm from "
+            "the guess)"
+        )
     if cost_final >= cost_init:
         reasons.append(
             "the map's points agree no better across frames than at the initial guess: kept the guess"
