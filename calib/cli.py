@@ -271,7 +271,14 @@ def session_command(
     guess = load_calibration(init) if init is not None else None
     geometry = board_geometry(board, square, outline) if board is not None else None
     recording = open_from_options(session, topics, start, duration, camera)
-    calibration, report = calibrate_session(recording, guess, lidar_motion, board=geometry)
+    with console.status("calibrating") as status:
+        calibration, report = calibrate_session(
+            recording,
+            guess,
+            lidar_motion,
+            board=geometry,
+            progress=lambda step: status.update(f"calibrating: {step}"),
+        )
     save_calibration(calibration, out)
     summary = {
         "T_cam_lidar": calibration.T_cam_lidar.tolist(),

@@ -9,6 +9,7 @@ Ouster and the virtual rig carry it in the LiDAR), otherwise KISS-ICP odometry.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -164,13 +165,14 @@ def calibrate_session(
     lidar_motion: str = "auto",
     topics: dict[str, str] | None = None,
     board: BoardGeometry | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> tuple[Calibration, dict[str, Any]]:
     """Everything a recording supports: camera model, time offset and the extrinsic — from the
     chessboard ``board`` when given, else targetless — starting at a rough ``T_cam_lidar``:
     ``init``'s, else the recording's ``/tf_static`` one, else :func:`motion_guess`. A time offset
     or extrinsic whose verdict is not ``ok`` is reported but not applied (the calibration keeps
-    the rough one). Returns the calibration and a report (``extrinsic_init`` says where the rough
-    extrinsic came from)."""
+    the rough one). ``progress`` is told each step as it starts. Returns the calibration and a
+    report (``extrinsic_init`` says where the rough extrinsic came from)."""
     recording = as_recording(path)
     data = load_session(recording, topics)
     camera = data.camera or (init.camera if init is not None else None)
@@ -196,6 +198,8 @@ def calibrate_session(
         camera, init.T_cam_lidar.copy() if init else np.eye(4), init.time_offset_s if init else 0.0
     )
 
+    tell = progress or (lambda step: None)
+    tell("time offset from the motion")
     time_result, motion = calibrate_time(data, camera, lidar_motion)
     report["time"] = time_result.to_json()
     report["time"]["applied"] = time_result.verdict == "ok"
@@ -215,6 +219,11 @@ def calibrate_session(
         if init is None:
             report["extrinsic_init"] = MOTION_GUESS
             calibration.T_cam_lidar = T_init.copy()
+        tell(
+            "extrinsic from the board"
+            if board is not None
+            else f"extrinsic: LiDAR map, then photo-consistency over {CONSISTENCY_FRAMES} frames (1-3 min)"
+        )
         result = session_extrinsic(data, camera, calibration.time_offset_s, motion, T_init, board)
         report["extrinsic"] = result.to_json()
         # As with the time offset: a result that cannot vouch for itself does not replace the

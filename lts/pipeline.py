@@ -207,7 +207,11 @@ def calibrate(recording: Recording, init: Path | None, out: Path, log: Callable[
     from calib.session_calib import calibrate_session, report_lines
     from rig.calibration import load_calibration, save_calibration
 
-    calibration, report = calibrate_session(recording, load_calibration(init) if init is not None else None)
+    calibration, report = calibrate_session(
+        recording,
+        load_calibration(init) if init is not None else None,
+        progress=lambda step: log(f"  {step}"),
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     save_calibration(calibration, out)
     for line in report_lines(report):
