@@ -10,14 +10,14 @@ code.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from rig.deskew import deskewed_points
 from rig.errors import InputError
-from rig.lidar_odometry import SweepOdometry, thinned, voxel_for_ranges
+from rig.lidar_odometry import SweepOdometry, thinned, usable_sweep, voxel_for_ranges
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 
@@ -44,42 +44,30 @@ class LidarMap:
     points: np.ndarray
 
 
-def _usable(scan: Scan) -> tuple[np.ndarray, np.ndarray] | None:
-    """A sweep's points ``(N, 3)`` float64 within range, thinned, and their times ``(N,)`` s; None
-    when fewer than 100 remain."""
-    chosen = thinned(len(scan.points), POINTS_PER_SWEEP)
-    points = np.asarray(scan.points, dtype=np.float64)[chosen]
-    squared = np.einsum("ij,ij->i", points, points)
-    keep = (squared > MIN_RANGE_M**2) & (squared < MAX_RANGE_M**2)
-    if keep.sum() < 100:
-        return None
-    return points[keep], np.asarray(scan.point_time_s, dtype=np.float64)[chosen][keep]
-
-
-def build_lidar_map(scans: Sequence[Scan], progress: Callable[[int], None] | None = None) -> LidarMap:
-    """Register every sweep (in time order), then merge them de-skewed into one map.
-
-    ``progress`` is called with the number of sweeps done (registration, then merging: twice
-    ``len(scans)`` in all). Raises :class:`~rig.errors.InputError` with fewer than 2 usable sweeps.
-    """
-    used = [(scan, sweep) for scan in scans if (sweep := _usable(scan)) is not None]
+def build_lidar_map(scans: Sequence[Scan]) -> LidarMap:
+    """Register every sweep (in time order), then merge them de-skewed into one map. Raises
+    :class:`~rig.errors.InputError` with fewer than 2 usable sweeps."""
+    used = [
+        (scan, sweep[:2])
+        for scan in scans
+        if (sweep := usable_sweep(scan.points, scan.point_time_s, POINTS_PER_SWEEP, MIN_RANGE_M, MAX_RANGE_M))
+        is not None
+    ]
     if len(used) < 2:
         raise InputError(f"only {len(used)} usable LiDAR sweeps; the LiDAR map needs 2", field="scans")
     voxel = voxel_for_ranges(np.linalg.norm(used[0][1][0], axis=1))
     odometry = SweepOdometry(voxel, MAX_RANGE_M, MIN_RANGE_M)
     t_ns, poses = [], []
-    for done, (scan, (points, times)) in enumerate(used, 1):
+    for scan, (points, times) in used:
         pose, information = odometry.register(points, times)
         t_ns.append(int(scan.t_host) + round(information.held_s * 1e9))
         poses.append(pose)
-        if progress is not None:
-            progress(done)
     trajectory = Trajectory.from_poses(np.array(t_ns, dtype=np.int64), np.stack(poses))
 
     import small_gicp
 
     merged = []
-    for done, (scan, (points, times)) in enumerate(used, 1):
+    for scan, (points, times) in used:
         point_t_ns = int(scan.t_host) + np.round(times * 1e9).astype(np.int64)
         world = deskewed_points(points, point_t_ns, trajectory)
         # One thread: with more, the points come out in a thread-dependent order.
@@ -88,8 +76,6 @@ def build_lidar_map(scans: Sequence[Scan], progress: Callable[[int], None] | Non
                 world, voxel * MAP_VOXEL_PER_ODOMETRY_VOXEL, num_threads=1
             ).points()[:, :3]
         )
-        if progress is not None:
-            progress(len(used) + done)
     cloud = small_gicp.voxelgrid_sampling(
         np.vstack(merged), voxel * MAP_VOXEL_PER_ODOMETRY_VOXEL, num_threads=1
     )

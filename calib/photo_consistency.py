@@ -85,9 +85,8 @@ class _Problem:
         self.K = prepared[0][1]
         self.height, self.width = self.grays[0].shape
         #: (F, N, 3) map points in each frame's LiDAR frame (they do not depend on the extrinsic).
-        self.lidar_points = np.stack(
-            [world @ invert(f.T_world_lidar)[:3, :3].T + invert(f.T_world_lidar)[:3, 3] for f in frames]
-        )
+        lidar_world = [invert(f.T_world_lidar) for f in frames]
+        self.lidar_points = np.stack([world @ T[:3, :3].T + T[:3, 3] for T in lidar_world])
         self.images = self.grays
 
     def blur(self, sigma: float) -> None:
@@ -298,7 +297,7 @@ def _out_of_the_valley(problem: _Problem, T_init: np.ndarray, x: np.ndarray) -> 
     if min(costs) >= here:
         return x
     other = _coarse_to_fine(problem, T_init, candidates[int(np.argmin(costs))], BLUR_STAGES[-3:])
-    return other if _self_cost(problem, T_init, other) < _self_cost(problem, T_init, x) else x
+    return other if _self_cost(problem, T_init, other) < problem.cost(apply_increment(x, T_init), obs) else x
 
 
 def photo_consistency_extrinsic(
@@ -328,7 +327,7 @@ def photo_consistency_extrinsic(
     std = np.sqrt(np.maximum(np.diag(_covariance(problem, T_init, x)), 0.0))
     rot_std, trans_std = float(np.linalg.norm(std[:3])), float(np.linalg.norm(std[3:])) / 10.0
     reasons = []
-    seen = int((problem.visible(T_best).sum(axis=0) >= MIN_VIEWS).sum())
+    seen = obs.n_points  # the points at least MIN_VIEWS frames see at the result
     if seen < MIN_SEEN_FRACTION * n_points:
         reasons.append(
             f"the result sees {seen} map points in {MIN_VIEWS} frames, the guess {n_points}: the search "

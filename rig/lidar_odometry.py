@@ -122,6 +122,21 @@ def thinned(count: int, budget: int) -> np.ndarray | slice:
     return np.flatnonzero(np.mod(np.arange(count) * 0.6180339887498949, 1.0) < budget / count)
 
 
+def usable_sweep(
+    points: np.ndarray, point_time_s: np.ndarray, budget: int, min_range: float, max_range: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """A sweep's points ``(N, 3)`` :func:`thinned` to ``budget`` and within ``(min_range,
+    max_range)`` m, as float64, with their times ``(N,)`` s and ranges ``(N,)`` m; None when fewer
+    than 100 remain."""
+    chosen = thinned(len(points), budget)
+    points = points[chosen].astype(np.float64)
+    ranges = np.sqrt(np.einsum("ij,ij->i", points, points))
+    keep = (ranges > min_range) & (ranges < max_range)
+    if keep.sum() < 100:
+        return None
+    return points[keep], point_time_s[chosen][keep].astype(np.float64), ranges[keep]
+
+
 def nearest_rotation(T: np.ndarray) -> np.ndarray:
     """``T`` ``(4, 4)`` with its rotation block projected onto the nearest rotation: products of
     poses drift from orthonormality, and composing a drifted pose with its transpose-inverse

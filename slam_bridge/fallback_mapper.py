@@ -21,7 +21,7 @@ from rig.lidar_odometry import (
     MAP_VOXELS_PER_VOXEL,
     SweepOdometry,
     nearest_rotation,
-    thinned,
+    usable_sweep,
     voxel_for_ranges,
 )
 from rig.messages import Scan
@@ -323,17 +323,19 @@ def _deskewed_sweeps(
         )
 
     for index, scan in enumerate(scans):
-        chosen = thinned(len(scan.points), config.max_points_per_sweep)
-        points = scan.points[chosen].astype(np.float64)
-        ranges = np.sqrt(np.einsum("ij,ij->i", points, points))
-        keep = (ranges > config.min_range_m) & (ranges < config.max_range_m)
-        if keep.sum() < 100:
+        sweep = usable_sweep(
+            scan.points,
+            scan.point_time_s,
+            config.max_points_per_sweep,
+            config.min_range_m,
+            config.max_range_m,
+        )
+        if sweep is None:
             continue
-        points = points[keep]
-        times = scan.point_time_s[chosen][keep].astype(np.float64)
+        points, times, ranges = sweep
         if log.odometry is None:
-            log.voxel_m = odometry_voxel(ranges[keep], config)
-            log.tsdf_voxel_m = tsdf_voxel(ranges[keep], config)
+            log.voxel_m = odometry_voxel(ranges, config)
+            log.tsdf_voxel_m = tsdf_voxel(ranges, config)
             log.odometry = SweepOdometry(log.voxel_m, config.max_range_m, config.min_range_m)
         pose, information = log.odometry.register(points, times)
         t_ns.append(int(scan.t_host) + round(information.held_s * 1e9))
