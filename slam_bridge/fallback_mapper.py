@@ -27,7 +27,7 @@ from rig.lidar_odometry import (
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, make_transform, transform_points
-from slam_bridge.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
+from rig.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 from slam_bridge.mapping_quality import MappingQuality, judge_mapping
 
 # Rotations R_face_sensor of the six cube-map cameras: rows are the camera's x (right), y (down) and
@@ -244,7 +244,7 @@ def run_mapper(
     scans' host clock when each holds (:func:`~rig.lidar_odometry.sweep_information`). A scan is
     de-skewed once the next one's pose is known (with the poses before, at and after it) and its
     moving points are found once the sweeps it is compared with are in
-    (:func:`~slam_bridge.dynamic_points.label_dynamic`). Its static points are then registered
+    (:func:`~rig.dynamic_points.label_dynamic`). Its static points are then registered
     again, by a second odometry that never sees a moving point, and integrated at that pose; the
     difference between the two trajectories goes into the :class:`MappingQuality`.
     """

@@ -17,7 +17,7 @@ from rig.deskew import deskewed_points
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, transform_points
-from slam_bridge.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
+from rig.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 from slam_bridge.keyframe_selection import lidar_clock
 from slam_bridge.scene import LIDAR_DIR, MOVING_DIR, Keyframe
 
@@ -65,7 +65,7 @@ def keyframe_lidar(
     """Per keyframe (in time order), the points in its camera frame of the scans stamped within its
     :func:`keyframe_windows` (on the camera clock), deskewed with the LiDAR ``trajectory`` (host
     clock) and seen by ``camera``, without the points of moving objects
-    (:func:`~slam_bridge.dynamic_points.label_dynamic` with ``dynamic``; None keeps them); those
+    (:func:`~rig.dynamic_points.label_dynamic` with ``dynamic``; None keeps them); those
     are kept apart for the sweeps within :data:`MOVING_WINDOW_S` of the keyframe. Scans are
     streamed; each is deskewed once."""
     stamps_ns = np.array([k.t_ns for k in keyframes])

@@ -2,7 +2,7 @@
 
 Two things make LiDAR odometry doubtful on real drives, and each is measured while mapping:
 - **moving objects**: the trajectory is registered twice, with every point and then with the
-  static points only (:mod:`slam_bridge.dynamic_points`); where many points moved and the two
+  static points only (:mod:`rig.dynamic_points`); where many points moved and the two
   differ by more than :data:`MAX_DYNAMIC_SHIFT_M` (or :data:`MAX_DYNAMIC_SHIFT_FRACTION` of the
   path), traffic pulled the first, and the moving points were found with its poses;
 - **degenerate geometry**: sweeps whose surface normals leave a translation direction nearly

@@ -72,7 +72,7 @@ def test_lidar_depth_agrees_with_ground_truth_depth(gt_scene: Path, quick_room: 
 
 def _static_points(scans: list, trajectory) -> list[np.ndarray]:
     """Each scan's de-skewed world points ``(N, 3)`` without those the see-through test marks."""
-    from slam_bridge.dynamic_points import DEFAULT_DYNAMIC, label_dynamic
+    from rig.dynamic_points import DEFAULT_DYNAMIC, label_dynamic
 
     def sweeps():
         for s in scans:

@@ -6,7 +6,7 @@ import numpy as np
 import trimesh
 
 from rig.sim.movers import Mover, MovingRaycaster, inside_movers
-from slam_bridge.dynamic_points import DynamicConfig, comparison_sweeps, dynamic_mask, sweep_view
+from rig.dynamic_points import DynamicConfig, comparison_sweeps, dynamic_mask, sweep_view
 
 
 def _scene() -> tuple[trimesh.Trimesh, Mover]:
