@@ -3,23 +3,26 @@ moment, and the points of all its sweeps in one world frame.
 
 The trajectory is the fallback mapper's odometry (scan-to-map VGICP on the raw sweeps, each pose
 stamped when it holds, :class:`rig.lidar_odometry.SweepOdometry`); the sweeps are then de-skewed
-with it and merged, one point per voxel. Calibration cannot wait for the mapper (it runs before
+with it, the points of moving things (that other sweeps see through,
+:mod:`rig.dynamic_points`) set apart, and the rest merged, one point per voxel. Calibration cannot wait for the mapper (it runs before
 it, and ``rig`` → ``calib`` → ``slam_bridge``), but the odometry and the thinning are the same
 code.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from rig.deskew import deskewed_points
+from rig.dynamic_points import DEFAULT_DYNAMIC, label_dynamic
 from rig.errors import InputError
 from rig.lidar_odometry import SweepOdometry, thinned, usable_sweep, voxel_for_ranges
 from rig.messages import Scan
 from rig.trajectory import Trajectory
+from rig.transforms import invert, transform_points
 
 #: Sweeps are thinned to this many points before anything else (the mapper's default).
 POINTS_PER_SWEEP = 32_000
@@ -29,6 +32,9 @@ MAX_RANGE_M = 60.0
 #: virtual room, 12 cm on the 64-beam street), then at most MAP_POINTS of them, spread evenly.
 MAP_VOXEL_PER_ODOMETRY_VOXEL = 1 / 3
 MAP_POINTS = 120_000
+#: The moving points that hide the map in a camera frame are those measured this close to it
+#: (half a sweep: a car crossing at 6 m/s moves 30 cm in that time).
+MOVING_WINDOW_S = 0.05
 
 
 @dataclass(eq=False)
@@ -37,11 +43,22 @@ class LidarMap:
 
     Attributes:
         trajectory: poses ``T_world_lidar`` on the LiDAR's host clock (world: the first sweep).
-        points: ``(N, 3)`` float64 map points in the world frame.
+        points: ``(N, 3)`` float64 map points of what stood still, in the world frame.
+        moving_points: ``(M, 3)`` float64 world points of moving things, where each was when
+            measured, in time order.
+        moving_t_ns: ``(M,)`` int64 their times (host clock).
     """
 
     trajectory: Trajectory
     points: np.ndarray
+    moving_points: np.ndarray
+    moving_t_ns: np.ndarray
+
+    def moving_near(self, t_ns: int, window_s: float = MOVING_WINDOW_S) -> np.ndarray:
+        """``(K, 3)`` the world points of moving things measured within ``window_s`` of ``t_ns``."""
+        window = round(window_s * 1e9)
+        start, stop = np.searchsorted(self.moving_t_ns, (t_ns - window, t_ns + window + 1))
+        return self.moving_points[start:stop]
 
 
 def build_lidar_map(scans: Sequence[Scan]) -> LidarMap:
@@ -64,20 +81,41 @@ def build_lidar_map(scans: Sequence[Scan]) -> LidarMap:
         poses.append(pose)
     trajectory = Trajectory.from_poses(np.array(t_ns, dtype=np.int64), np.stack(poses))
 
-    import small_gicp
+    def de_skewed() -> Iterator[tuple[float, np.ndarray, np.ndarray]]:
+        for scan, (points, times) in used:
+            point_t_ns = int(scan.t_host) + np.round(times * 1e9).astype(np.int64)
+            T_world_lidar = trajectory.interpolate(int(scan.t_host), clamp=True)
+            world = deskewed_points(points, point_t_ns, trajectory)
+            yield scan.t_host * 1e-9, transform_points(invert(T_world_lidar), world), T_world_lidar
 
-    merged = []
-    for scan, (points, times) in used:
-        point_t_ns = int(scan.t_host) + np.round(times * 1e9).astype(np.int64)
-        world = deskewed_points(points, point_t_ns, trajectory)
-        # One thread: with more, the points come out in a thread-dependent order.
-        merged.append(
-            small_gicp.voxelgrid_sampling(
-                world, voxel * MAP_VOXEL_PER_ODOMETRY_VOXEL, num_threads=1
-            ).points()[:, :3]
-        )
-    cloud = small_gicp.voxelgrid_sampling(
-        np.vstack(merged), voxel * MAP_VOXEL_PER_ODOMETRY_VOXEL, num_threads=1
+    map_voxel = voxel * MAP_VOXEL_PER_ODOMETRY_VOXEL
+    still, moving, moving_t_ns = [], [], []
+    for index, view, dynamic in label_dynamic(de_skewed(), DEFAULT_DYNAMIC):
+        scan, (_, times) = used[index]
+        kept = view.points_world[~dynamic]
+        still.append(kept[_one_per_voxel(kept, map_voxel)])
+        moving.append(view.points_world[dynamic])
+        moving_t_ns.append(int(scan.t_host) + np.round(times[dynamic] * 1e9).astype(np.int64))
+    points = np.vstack(still)
+    points = points[_one_per_voxel(points, map_voxel)]
+    moving_t = np.concatenate(moving_t_ns)
+    order = np.argsort(moving_t, kind="stable")
+    return LidarMap(
+        trajectory, points[thinned(len(points), MAP_POINTS)], np.vstack(moving)[order], moving_t[order]
     )
-    points = np.asarray(cloud.points()[:, :3], dtype=np.float64)
-    return LidarMap(trajectory, points[thinned(len(points), MAP_POINTS)])
+
+
+def _one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:
+    """Sorted indices ``(V,)`` of the first of ``points`` ``(N, 3)`` in each occupied voxel.
+
+    A measured point, not the voxel's mean (small_gicp's and open3d's down-sampling): a mean
+    over a voxel that straddles an edge (a kerb, a corner, a post against a wall) floats off both
+    surfaces, and edges are what the photo-consistency sees. On the virtual street, whose boxes
+    are aligned with the world axes, means made the cost at the true extrinsic depend on how the
+    voxel grid fell: 0.0062 with the street's axes, 0.0114 with the first sweep's (0.0068 and
+    0.0096 with measured points)."""
+    keys = np.floor(points / voxel).astype(np.int64)
+    keys -= keys.min(axis=0)
+    span = keys.max(axis=0) + 1
+    flat = (keys[:, 0] * span[1] + keys[:, 1]) * span[2] + keys[:, 2]
+    return np.sort(np.unique(flat, return_index=True)[1])

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -47,7 +47,11 @@ XTOL = (3e-2, 1e-2, 1e-2, 1e-2, 3e-3, 1e-3)
 #: is meant for (10° / 30 cm), short of places where the points project somewhere else entirely
 #: (unbounded, a 64-beam street's search ran 26-64 m away).
 SEARCH_REACH = (15.0, 5.0)
-BOUNDS = [(-SEARCH_REACH[0], SEARCH_REACH[0])] * 3 + [(-SEARCH_REACH[1], SEARCH_REACH[1])] * 3
+#: A rig whose frames turn less than this (degrees) drives straight: the roll about its direction
+#: of travel and the shift along it are kept from the guess (the virtual room's robot turns
+#: 53°, the virtual street's car 0.7°). The travel must span MIN_TRAVEL_M to have a direction.
+MIN_TURN_DEG = 10.0
+MIN_TRAVEL_M = 0.5
 #: The result must see at least this fraction of the points the guess sees (a search that ran
 #: off to where the camera sees little of the map can look consistent).
 MIN_SEEN_FRACTION = 0.7
@@ -56,24 +60,56 @@ MIN_SEEN_FRACTION = 0.7
 VALLEY_BLUR = 4.0
 VALLEY_REACH = 3.0
 VALLEY_STEPS = 6
-#: Finite-difference steps (degrees, decimetres) and the stretches of frames of the jackknife.
-STEP = (0.05, 0.05)
+#: Finite-difference steps (degrees, decimetres) and the stretches of frames of the jackknife:
+#: at 0.05° / 5 mm the cost's curvature was mostly noise (a near-zero eigenvalue on the room).
+STEP = (0.15, 0.15)
 JACKKNIFE_GROUPS = 5
 MIN_FRAMES = 4
 MIN_POINTS = 2000
-#: Verdict limits on the standard deviations.
-MAX_ROT_STD_DEG = 0.15
-MAX_TRANS_STD_M = 0.015
+#: Verdict limits on the standard deviations: the 95 % interval (2σ) within 0.5° / 5 cm.
+MAX_ROT_STD_DEG = 0.25
+MAX_TRANS_STD_M = 0.025
 METHOD = "targetless (photo-consistency of the LiDAR map over {} frames)"
 
 
 @dataclass(eq=False)
 class ConsistencyFrame:
-    """One camera image ``(H, W[, 3])`` uint8 and the LiDAR's pose ``T_world_lidar`` ``(4, 4)``
-    (the map's world) at the instant it was taken."""
+    """One camera image ``(H, W[, 3])`` uint8, the LiDAR's pose ``T_world_lidar`` ``(4, 4)`` (the
+    map's world) at the instant it was taken, and ``occluders`` ``(K, 3)``: world points of
+    things that stood there then but are not in the map (moving vehicles), which hide the map
+    points behind them in this image."""
 
     image: np.ndarray
     T_world_lidar: np.ndarray
+    occluders: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+
+@dataclass(eq=False)
+class _Parameters:
+    """What the search moves: ``T_cam_lidar`` = ``T_init`` turned and moved by ``basis @ y``
+    (:func:`~calib.targetless.apply_increment`; degrees and decimetres). ``basis`` ``(6, k)`` has
+    orthonormal columns, each a rotation or a translation: all six axes, or fewer where the motion
+    cannot observe some (:func:`_observable_basis`)."""
+
+    T_init: np.ndarray
+    basis: np.ndarray
+
+    def pose(self, y: np.ndarray) -> np.ndarray:
+        """``T_cam_lidar`` ``(4, 4)`` at coefficients ``y`` ``(k,)``."""
+        return apply_increment(self.basis @ y, self.T_init)
+
+    def is_rotation(self) -> np.ndarray:
+        """``(k,)`` bool: which columns turn (the others move)."""
+        return np.abs(self.basis[:3]).sum(axis=0) > 0
+
+    def per_column(self, rotation: float, translation: float) -> np.ndarray:
+        """``(k,)``: ``rotation`` for the turning columns, ``translation`` for the others."""
+        return np.where(self.is_rotation(), rotation, translation)
+
+    def bounds(self) -> list[tuple[float, float]]:
+        """Powell's bounds on ``y``: :data:`SEARCH_REACH` along every column."""
+        reach = self.per_column(*SEARCH_REACH)
+        return list(zip(-reach, reach, strict=True))
 
 
 class _Problem:
@@ -87,6 +123,8 @@ class _Problem:
         #: (F, N, 3) map points in each frame's LiDAR frame (they do not depend on the extrinsic).
         lidar_world = [invert(f.T_world_lidar) for f in frames]
         self.lidar_points = np.stack([world @ T[:3, :3].T + T[:3, 3] for T in lidar_world])
+        #: Each frame's occluders in its LiDAR frame (``(K_f, 3)``; they hide, they are not scored).
+        self.occluders = [f.occluders @ T[:3, :3].T + T[:3, 3] for f, T in zip(frames, lidar_world, strict=True)]
         self.images = self.grays
 
     def blur(self, sigma: float) -> None:
@@ -96,11 +134,13 @@ class _Problem:
 
     def visible(self, T: np.ndarray) -> np.ndarray:
         """``(F, N)`` mask of map points in view and in front in each frame with ``T_cam_lidar``
-        ``T`` ``(4, 4)`` (z-buffer)."""
+        ``T`` ``(4, 4)`` (z-buffer of the map and the frame's occluders)."""
+        n_map = self.lidar_points.shape[1]
         seen = np.zeros(self.lidar_points.shape[:2], dtype=bool)
         kernel = np.ones((OCCLUSION_PX, OCCLUSION_PX), np.uint8)
-        for k, q in enumerate(self.lidar_points):
-            u, v, z, inside = _project(q @ T[:3, :3].T + T[:3, 3], self.K, self.width, self.height)
+        for k, (q, hiding) in enumerate(zip(self.lidar_points, self.occluders, strict=True)):
+            everything = np.vstack([q, hiding])
+            u, v, z, inside = _project(everything @ T[:3, :3].T + T[:3, 3], self.K, self.width, self.height)
             index = np.flatnonzero(inside)
             row, col = np.rint(v[index]).astype(np.int64), np.rint(u[index]).astype(np.int64)
             nearest = np.full((self.height, self.width), np.inf, dtype=np.float32)
@@ -108,7 +148,8 @@ class _Problem:
             # The map is sparse: a surface in front hides what lies behind it between its points.
             nearest = cv2.erode(nearest, kernel)
             front = z[index] <= nearest[row, col] * (1 + DEPTH_TOLERANCE[0]) + DEPTH_TOLERANCE[1]
-            seen[k, index[front]] = True
+            shown = index[front]
+            seen[k, shown[shown < n_map]] = True
         return seen
 
     def observations(self, T: np.ndarray, frames: np.ndarray) -> _Observations:
@@ -200,83 +241,87 @@ def _project(
 
 
 def _search(
-    problem: _Problem, T_init: np.ndarray, x: np.ndarray, frames: np.ndarray, xtol: float
+    problem: _Problem, params: _Parameters, y: np.ndarray, frames: np.ndarray, xtol: float
 ) -> np.ndarray:
-    """Powell from increment ``x`` ``(6,)`` over ``frames`` (indices), with the points and
-    visibility at ``x``, to ``xtol`` (degrees / decimetres); returns the increment."""
-    obs = problem.observations(apply_increment(x, T_init), frames)
+    """Powell from coefficients ``y`` ``(k,)`` over ``frames`` (indices), with the points and
+    visibility at ``y``, to ``xtol`` (degrees / decimetres); returns the coefficients."""
+    obs = problem.observations(params.pose(y), frames)
     options = {"xtol": xtol, "ftol": 1e-6}
     return minimize(
-        lambda y: problem.cost(apply_increment(y, T_init), obs),
-        x,
+        lambda z: problem.cost(params.pose(z), obs),
+        y,
         method="Powell",
-        bounds=BOUNDS,
+        bounds=params.bounds(),
         options=options,
     ).x
 
 
-def _gradient_and_hessian(
-    cost: Callable[[np.ndarray], float], x: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Central finite differences of ``cost`` at ``x`` ``(6,)`` with steps :data:`STEP`: the
-    gradient ``(6,)`` and the Hessian ``(6, 6)``."""
-    step = np.r_[[STEP[0]] * 3, [STEP[1]] * 3]
-    eye = np.eye(6) * step
+def _gradient(cost: Callable[[np.ndarray], float], x: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Central finite differences of ``cost`` at ``x`` ``(k,)`` with steps ``step`` ``(k,)``."""
+    eye = np.diag(step)
+    return np.array([cost(x + e) - cost(x - e) for e in eye]) / (2 * step)
+
+
+def _hessian(cost: Callable[[np.ndarray], float], x: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Central finite differences of ``cost`` at ``x`` ``(k,)`` with steps ``step`` ``(k,)``: the
+    Hessian ``(k, k)``."""
+    eye = np.diag(step)
     centre = cost(x)
     plus, minus = np.array([cost(x + e) for e in eye]), np.array([cost(x - e) for e in eye])
     hessian = np.diag((plus - 2 * centre + minus) / step**2)
-    for a, b in itertools.combinations(range(6), 2):
+    for a, b in itertools.combinations(range(len(x)), 2):
         corners = [cost(x + sa * eye[a] + sb * eye[b]) for sa, sb in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
         hessian[a, b] = hessian[b, a] = (corners[0] - corners[1] - corners[2] + corners[3]) / (
             4 * step[a] * step[b]
         )
-    return (plus - minus) / (2 * step), hessian
+    return hessian
 
 
-def _covariance(problem: _Problem, T_init: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Covariance ``(6, 6)`` of the increment ``x`` (degrees, decimetres): a jackknife over
-    :data:`JACKKNIFE_GROUPS` stretches of consecutive frames, each left out in turn. The estimate
-    without a stretch is one Newton step of the cost without it from ``x`` (a full search would
-    wander along the cost's flat valleys and report its own stopping point rather than the data's
-    spread). Pose errors of the odometry and moving things differ from stretch to stretch, so this
-    sees more than the image noise."""
+def _covariance(problem: _Problem, params: _Parameters, y: np.ndarray) -> np.ndarray:
+    """Covariance ``(6, 6)`` of the increment ``basis @ y`` (degrees, decimetres; nothing along
+    the axes the basis leaves out): a jackknife over :data:`JACKKNIFE_GROUPS` stretches of
+    consecutive frames, each left out in turn. The estimate without a stretch is one Newton step
+    from ``y``: the gradient of the cost without the stretch, the curvature of the cost over all
+    frames (a full search per stretch wandered along the cost's flat valleys; each stretch's own
+    curvature, from fewer frames, put a near-zero curvature somewhere and a 13 cm step along it).
+    Pose errors of the odometry and moving things differ from stretch to stretch, so this sees
+    more than the image noise."""
     every = np.arange(len(problem.grays))
+    step = params.per_column(*STEP)
+    observed = problem.observations(params.pose(y), every)
+    values, vectors = np.linalg.eigh(_hessian(lambda z: problem.cost(params.pose(z), observed), y, step))
+    # Only the curvature that holds the estimate: a direction the cost does not curve up in
+    # moves nothing (it shows in the other stretches' steps instead).
+    inverse = vectors @ np.diag(np.where(values > 0, 1 / np.maximum(values, 1e-12), 0.0)) @ vectors.T
     groups = np.array_split(every, min(JACKKNIFE_GROUPS, len(every)))
     steps = []
     for group in groups:
-        obs = problem.observations(apply_increment(x, T_init), np.setdiff1d(every, group))
-        gradient, hessian = _gradient_and_hessian(
-            lambda y, obs=obs: problem.cost(apply_increment(y, T_init), obs), x
-        )
-        # Only the curvature that holds the estimate: a direction the cost does not curve up in
-        # moves nothing (it shows in the other stretches' steps instead).
-        values, vectors = np.linalg.eigh(hessian)
-        inverse = vectors @ np.diag(np.where(values > 0, 1 / np.maximum(values, 1e-12), 0.0)) @ vectors.T
-        steps.append(-inverse @ gradient)
+        obs = problem.observations(params.pose(y), np.setdiff1d(every, group))
+        steps.append(-inverse @ _gradient(lambda z, obs=obs: problem.cost(params.pose(z), obs), y, step))
     steps = np.array(steps)
     g = len(groups)
     centred = steps - steps.mean(axis=0)
-    return (g - 1) / g * centred.T @ centred
+    return params.basis @ ((g - 1) / g * centred.T @ centred) @ params.basis.T
 
 
 def _coarse_to_fine(
-    problem: _Problem, T_init: np.ndarray, x: np.ndarray, blurs: Sequence[float]
+    problem: _Problem, params: _Parameters, y: np.ndarray, blurs: Sequence[float]
 ) -> np.ndarray:
-    """:func:`_search` at each of ``blurs`` (a tail of :data:`BLUR_STAGES`) in turn, from ``x``."""
+    """:func:`_search` at each of ``blurs`` (a tail of :data:`BLUR_STAGES`) in turn, from ``y``."""
     for sigma, xtol in zip(blurs, XTOL[-len(blurs) :], strict=True):
         problem.blur(sigma)
-        x = _search(problem, T_init, x, np.arange(len(problem.grays)), xtol)
-    return x
+        y = _search(problem, params, y, np.arange(len(problem.grays)), xtol)
+    return y
 
 
-def _self_cost(problem: _Problem, T_init: np.ndarray, x: np.ndarray) -> float:
-    """The cost at ``x`` over the points visible there."""
-    T = apply_increment(x, T_init)
+def _self_cost(problem: _Problem, params: _Parameters, y: np.ndarray) -> float:
+    """The cost at ``y`` over the points visible there."""
+    T = params.pose(y)
     return problem.cost(T, problem.observations(T, np.arange(len(problem.grays))))
 
 
-def _out_of_the_valley(problem: _Problem, T_init: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``x`` or a better minimum found by scanning along each axis from ``x``.
+def _out_of_the_valley(problem: _Problem, params: _Parameters, y: np.ndarray) -> np.ndarray:
+    """``y`` or a better minimum found by scanning along each free axis from ``y``.
 
     A rig that turns about one axis only (a robot on a floor) hardly constrains the translation
     along that axis, and the search can stop in a shallow local minimum of the long valley (the
@@ -286,18 +331,47 @@ def _out_of_the_valley(problem: _Problem, T_init: np.ndarray, x: np.ndarray) -> 
     and the end with the lower cost wins.
     """
     every = np.arange(len(problem.grays))
-    obs = problem.observations(apply_increment(x, T_init), every)
+    obs = problem.observations(params.pose(y), every)
     problem.blur(VALLEY_BLUR)
     along = np.linspace(-VALLEY_REACH, VALLEY_REACH, 2 * VALLEY_STEPS + 1)
-    low, high = np.array(BOUNDS).T
-    candidates = [np.clip(x + a * np.eye(6)[axis], low, high) for axis in range(6) for a in along if a != 0]
-    costs = [problem.cost(apply_increment(y, T_init), obs) for y in candidates]
-    here = problem.cost(apply_increment(x, T_init), obs)
+    low, high = np.array(params.bounds()).T
+    axes = np.eye(len(y))
+    candidates = [np.clip(y + a * axis, low, high) for axis in axes for a in along if a != 0]
+    costs = [problem.cost(params.pose(z), obs) for z in candidates]
+    here = problem.cost(params.pose(y), obs)
     problem.blur(BLUR_STAGES[-1])
     if min(costs) >= here:
-        return x
-    other = _coarse_to_fine(problem, T_init, candidates[int(np.argmin(costs))], BLUR_STAGES[-3:])
-    return other if _self_cost(problem, T_init, other) < problem.cost(apply_increment(x, T_init), obs) else x
+        return y
+    other = _coarse_to_fine(problem, params, candidates[int(np.argmin(costs))], BLUR_STAGES[-3:])
+    return other if _self_cost(problem, params, other) < problem.cost(params.pose(y), obs) else y
+
+
+def _straight_travel(frames: Sequence[ConsistencyFrame]) -> tuple[float, np.ndarray | None]:
+    """The most the LiDAR turned between any two ``frames`` (degrees) and, when that is under
+    :data:`MIN_TURN_DEG`, its unit direction of travel ``(3,)`` in the LiDAR frame (None when it
+    turned more, or moved less than :data:`MIN_TRAVEL_M`)."""
+    rotations = np.array([f.T_world_lidar[:3, :3] for f in frames])
+    relative = np.einsum("aji,bjk->abik", rotations, rotations)  # R_a^T R_b
+    cosine = np.clip((np.trace(relative, axis1=2, axis2=3) - 1) / 2, -1.0, 1.0)
+    turn = float(np.degrees(np.arccos(cosine.min())))
+    positions = np.array([f.T_world_lidar[:3, 3] for f in frames])
+    centred = positions - positions.mean(axis=0)
+    direction = np.linalg.svd(centred, full_matrices=False)[2][0]
+    if turn >= MIN_TURN_DEG or np.ptp(centred @ direction) < MIN_TRAVEL_M:
+        return turn, None
+    in_lidar = np.einsum("nji,j->ni", rotations, direction).mean(axis=0)
+    return turn, in_lidar / np.linalg.norm(in_lidar)
+
+
+def _observable_basis(travel_cam: np.ndarray | None) -> np.ndarray:
+    """``(6, k)``: all six axes, or without the rotation about and the translation along the
+    unit direction of travel ``travel_cam`` ``(3,)`` (camera frame) of a straight drive."""
+    if travel_cam is None:
+        return np.eye(6)
+    across = np.linalg.svd(travel_cam[None, :])[2][1:].T  # (3, 2) orthonormal, normal to it
+    basis = np.zeros((6, 4))
+    basis[:3, :2], basis[3:, 2:] = across, across
+    return basis
 
 
 def photo_consistency_extrinsic(
@@ -305,11 +379,15 @@ def photo_consistency_extrinsic(
 ) -> ExtrinsicResult:
     """Refine ``T_cam_lidar`` ``(4, 4)`` from a rough guess so that the map's points look alike in
     all ``frames``. Never raises on weak data: too few frames or points give the guess back with
-    a ``poorly constrained`` verdict and the reason."""
+    a ``poorly constrained`` verdict and the reason.
+
+    A rig that drives straight (turning less than :data:`MIN_TURN_DEG`) sees the surfaces beside
+    its path, which lie along the direction of travel, shift within themselves under a roll about
+    that direction or a move along it; they look alike in every frame either way. Those two are
+    kept from the guess, the other four refined, and the verdict says so."""
     method = METHOD.format(len(frames))
     problem = _Problem(frames, camera, lidar_map.points)
     every = np.arange(len(frames))
-    x = np.zeros(6)
     initial = problem.visible(T_init)
     n_points = int((initial.sum(axis=0) >= MIN_VIEWS).sum())
     if len(frames) < MIN_FRAMES or n_points < MIN_POINTS:
@@ -319,22 +397,32 @@ def photo_consistency_extrinsic(
         )
         return _result(T_init, T_init, "poorly constrained", [reason], (np.inf,) * 2, {}, n_points, method)
 
-    x = _coarse_to_fine(problem, T_init, x, BLUR_STAGES)
-    x = _out_of_the_valley(problem, T_init, x)
-    T_best = apply_increment(x, T_init)
+    turn, travel = _straight_travel(frames)
+    travel_cam = None if travel is None else T_init[:3, :3] @ travel
+    params = _Parameters(T_init, _observable_basis(travel_cam))
+    y = _coarse_to_fine(problem, params, np.zeros(params.basis.shape[1]), BLUR_STAGES)
+    y = _out_of_the_valley(problem, params, y)
+    T_best = params.pose(y)
     obs = problem.observations(T_best, every)
     cost_init, cost_final = problem.cost(T_init, obs), problem.cost(T_best, obs)
-    std = np.sqrt(np.maximum(np.diag(_covariance(problem, T_init, x)), 0.0))
+    std = np.sqrt(np.maximum(np.diag(_covariance(problem, params, y)), 0.0))
     rot_std, trans_std = float(np.linalg.norm(std[:3])), float(np.linalg.norm(std[3:])) / 10.0
     reasons = []
+    if travel_cam is not None:
+        reasons.append(
+            f"the rig turned at most {turn:.1f}° between frames (under {MIN_TURN_DEG:.0f}°): driving "
+            "straight, the map looks alike under a roll about the direction of travel or a shift "
+            "along it, so both were kept from the guess"
+        )
+        rot_std = trans_std = np.inf  # nothing is known along the axes kept
     seen = obs.n_points  # the points at least MIN_VIEWS frames see at the result
     if seen < MIN_SEEN_FRACTION * n_points:
         reasons.append(
             f"the result sees {seen} map points in {MIN_VIEWS} frames, the guess {n_points}: the search "
             "ran off to where little of the map is in view"
         )
-    low, high = np.array(BOUNDS).T
-    if np.isclose(x, low, atol=1e-3).any() or np.isclose(x, high, atol=1e-3).any():
+    low, high = np.array(params.bounds()).T
+    if np.isclose(y, low, atol=1e-3).any() or np.isclose(y, high, atol=1e-3).any():
         reasons.append(
             f"the search reached its bound ({SEARCH_REACH[0]:.0f}° / {SEARCH_REACH[1] * 10:.0f} cm from "
             "the guess)"
@@ -343,13 +431,13 @@ def photo_consistency_extrinsic(
         reasons.append(
             "the map's points agree no better across frames than at the initial guess: kept the guess"
         )
-        x = np.zeros(6)
-    if rot_std > MAX_ROT_STD_DEG:
+        y = np.zeros_like(y)
+    if np.isfinite(rot_std) and rot_std > MAX_ROT_STD_DEG:
         reasons.append(
             f"rotation varies by ±{rot_std:.2f}° between stretches of frames (jackknife 1σ; limit "
             f"{MAX_ROT_STD_DEG}°)"
         )
-    if trans_std > MAX_TRANS_STD_M:
+    if np.isfinite(trans_std) and trans_std > MAX_TRANS_STD_M:
         reasons.append(
             f"translation varies by ±{trans_std * 100:.1f} cm between stretches of frames (jackknife "
             f"1σ; limit {MAX_TRANS_STD_M * 100:.1f} cm)"
@@ -359,11 +447,12 @@ def photo_consistency_extrinsic(
         "rotation_std_deg_xyz": (std[:3]).tolist(),
         "translation_std_m_xyz": (std[3:] / 10.0).tolist(),
         "frames": len(frames),
+        "turn_deg": turn,
     }
+    if travel_cam is not None:
+        extra["kept_from_guess"] = {"travel_direction_cam": travel_cam.tolist()}
     verdict = "poorly constrained" if reasons else "ok"
-    return _result(
-        apply_increment(x, T_init), T_init, verdict, reasons, (rot_std, trans_std), extra, n_points, method
-    )
+    return _result(params.pose(y), T_init, verdict, reasons, (rot_std, trans_std), extra, n_points, method)
 
 
 def _result(

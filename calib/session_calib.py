@@ -126,14 +126,15 @@ def consistency_frames(
     motion: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> list[ConsistencyFrame]:
     """:data:`CONSISTENCY_FRAMES` :func:`calm_frames` within the map's trajectory, each with the
-    LiDAR's pose when it was taken (camera stamps moved onto the LiDAR clock by the offset)."""
+    LiDAR's pose when it was taken (camera stamps moved onto the LiDAR clock by the offset) and
+    the moving things measured then (:meth:`~calib.lidar_map.LidarMap.moving_near`)."""
     indices = calm_frames(data, motion, CONSISTENCY_FRAMES)
     t_ns = np.round((frame_times(data)[indices] - time_offset_s) * 1e9).astype(np.int64)
     covered = lidar_map.trajectory.covers(t_ns)
     poses = lidar_map.trajectory.interpolate(t_ns[covered]) if covered.any() else np.zeros((0, 4, 4))
     return [
-        ConsistencyFrame(data.frames[i].image, pose)
-        for i, pose in zip(np.asarray(indices)[covered], poses, strict=True)
+        ConsistencyFrame(data.frames[i].image, pose, lidar_map.moving_near(int(t)))
+        for i, t, pose in zip(np.asarray(indices)[covered], t_ns[covered], poses, strict=True)
     ]
 
 

@@ -8,7 +8,8 @@ by a given distance in a random direction (both drawn from the session's seed), 
 (:func:`calib.session_calib.motion_guess`). Per trial it records the error against the truth, the
 verdict, the reported spread and the seconds; per source (preset or KITTI) and guess: the median
 and largest error, the share of successes, ``ok`` verdicts given while wrong, and how often the
-truth lies inside the reported 95 % interval. Writes ``bench_calib.json`` and ``bench_calib.png``.
+truth lies inside the reported 95 % interval (over the trials that report one: axes kept from the
+guess leave a trial without). Writes ``bench_calib.json`` and ``bench_calib.png``.
 """
 
 from __future__ import annotations
@@ -123,10 +124,13 @@ def _trial(
         "translation_std_m": result.translation_std_m,
         "success": within,
         "false_ok": result.verdict == "ok" and not within,
+        # A trial without an interval (axes kept from the guess: infinite spread) covers nothing.
         "covered": bool(
             rotation_deg <= INTERVAL_95 * result.rotation_std_deg
             and translation_m <= INTERVAL_95 * result.translation_std_m
-        ),
+        )
+        if np.isfinite(result.rotation_std_deg) and np.isfinite(result.translation_std_m)
+        else None,
         "seconds": seconds,
     }
 
@@ -208,6 +212,7 @@ def _kitti_rows(folder: Path, guesses: Sequence[Guess], log: Callable[[str], Non
 def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Medians, maxima and shares over the trials of one preset and guess."""
     ran = [r for r in rows if r["verdict"] != "not run"]
+    bounded = [r for r in ran if r["covered"] is not None]
 
     def spread(key: str) -> dict[str, float | None]:
         values = [r[key] for r in ran]
@@ -221,7 +226,8 @@ def _summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "success_rate": sum(r["success"] for r in rows) / len(rows),
         "ok": sum(r["verdict"] == "ok" for r in rows),
         "false_ok": sum(r["false_ok"] for r in rows),
-        "coverage_95": sum(r["covered"] for r in ran) / len(ran) if ran else None,
+        "coverage_95": sum(r["covered"] for r in bounded) / len(bounded) if bounded else None,
+        "with_interval": len(bounded),
         "median_seconds": float(np.median([r["seconds"] for r in ran])) if ran else None,
     }
 

@@ -1,0 +1,90 @@
+"""Pieces of the photo-consistency extrinsic that need no recording: which axes a drive observes,
+what hides a map point, and which points the map keeps."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from calib.lidar_map import LidarMap, _one_per_voxel
+from calib.photo_consistency import (
+    MIN_TURN_DEG,
+    ConsistencyFrame,
+    _observable_basis,
+    _Parameters,
+    _Problem,
+    _straight_travel,
+)
+from rig.camera import CameraModel
+from rig.trajectory import Trajectory
+from rig.transforms import make_transform
+
+
+def _frames(yaw_deg: np.ndarray, positions: np.ndarray) -> list[ConsistencyFrame]:
+    image = np.zeros((48, 64), np.uint8)
+    return [
+        ConsistencyFrame(image, make_transform(Rotation.from_euler("z", yaw, degrees=True).as_matrix(), p))
+        for yaw, p in zip(yaw_deg, positions, strict=True)
+    ]
+
+
+def test_a_straight_drive_keeps_the_roll_about_and_the_shift_along_its_travel() -> None:
+    rng = np.random.default_rng(0)
+    along = np.linspace(0.0, 20.0, 12)
+    wobble = rng.normal(0.0, 0.2, 12)  # degrees of yaw: a car on a straight road
+    turn, travel = _straight_travel(_frames(wobble, np.column_stack([along, 0.05 * wobble, 0 * along])))
+    assert turn < MIN_TURN_DEG
+    assert abs(abs(travel[0]) - 1.0) < 1e-3  # the LiDAR's x, the way it drives
+
+    T_init = make_transform(Rotation.from_euler("xyz", (-90, 0, -90), degrees=True).as_matrix(), (0.1, -0.2, 0.0))
+    travel_cam = T_init[:3, :3] @ travel
+    params = _Parameters(T_init, _observable_basis(travel_cam))
+    assert params.basis.shape == (6, 4)
+    for _ in range(5):
+        T = params.pose(rng.normal(0.0, 3.0, 4))
+        turned = Rotation.from_matrix(T[:3, :3] @ T_init[:3, :3].T).as_rotvec()
+        assert abs(turned @ travel_cam) < 1e-9
+        assert abs((T[:3, 3] - T_init[:3, 3]) @ travel_cam) < 1e-9
+
+    turning = _frames(np.linspace(0.0, 40.0, 12), np.column_stack([along, along**2 / 40, 0 * along]))
+    turn, travel = _straight_travel(turning)
+    assert turn > 39.0 and travel is None
+    np.testing.assert_array_equal(_observable_basis(None), np.eye(6))
+
+
+def test_moving_things_hide_the_map_points_behind_them() -> None:
+    """A wall 10 m ahead; a car (not in the map) 5 m ahead covers its middle in one frame."""
+    camera = CameraModel("pinhole", 64, 48, np.array([[40.0, 0, 32], [0, 40.0, 24], [0, 0, 1]]), np.zeros(0))
+    u, v = np.meshgrid(np.linspace(-4, 4, 41), np.linspace(-3, 3, 31))
+    wall = np.column_stack([u.ravel(), v.ravel(), np.full(u.size, 10.0)])  # camera = LiDAR frame
+    cu, cv = np.meshgrid(np.linspace(-0.5, 0.5, 21), np.linspace(-0.5, 0.5, 21))
+    car = np.column_stack([cu.ravel(), cv.ravel(), np.full(cu.size, 5.0)])
+    image = np.zeros((48, 64), np.uint8)
+    frames = [ConsistencyFrame(image, np.eye(4)), ConsistencyFrame(image, np.eye(4), car)]
+    seen = _Problem(frames, camera, wall).visible(np.eye(4))
+    assert seen[0].all()
+    # The car covers ±4 px, the occlusion window 3 px more: ±1.75 m of the wall.
+    assert not seen[1][(np.abs(wall[:, 0]) < 1.0) & (np.abs(wall[:, 1]) < 1.0)].any()
+    assert seen[1][(np.abs(wall[:, 0]) > 2.0) | (np.abs(wall[:, 1]) > 2.0)].all()
+
+
+def test_the_map_keeps_measured_points_one_per_voxel() -> None:
+    """Points on the two faces of an edge: a voxel's mean would float between them."""
+    rng = np.random.default_rng(1)
+    floor = np.column_stack([rng.uniform(0, 1, 500), rng.uniform(0, 1, 500), np.zeros(500)])
+    wall = np.column_stack([rng.uniform(0, 1, 500), np.zeros(500), rng.uniform(0, 1, 500)])
+    points = np.vstack([floor, wall])
+    kept = _one_per_voxel(points, 0.1)
+    assert np.all(np.diff(kept) > 0)
+    chosen = points[kept]
+    assert np.all((chosen[:, 2] == 0) | (chosen[:, 1] == 0))  # every one on a face
+    keys = np.floor(chosen / 0.1).astype(int)
+    assert len(np.unique(keys, axis=0)) == len(kept) == len(np.unique(np.floor(points / 0.1).astype(int), axis=0))
+
+
+def test_moving_points_near_a_time() -> None:
+    t_ns = np.arange(10, dtype=np.int64) * 20_000_000  # every 20 ms
+    trajectory = Trajectory.from_poses(np.array([0, 10**9]), np.stack([np.eye(4)] * 2))
+    lidar_map = LidarMap(trajectory, np.zeros((0, 3)), np.arange(30.0).reshape(10, 3), t_ns)
+    near = lidar_map.moving_near(100_000_000)  # 100 ms: the points at 60..140 ms
+    np.testing.assert_array_equal(near[:, 0], [9.0, 12.0, 15.0, 18.0, 21.0])
