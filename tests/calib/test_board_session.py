@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import time
 from pathlib import Path
 
 import cv2
@@ -117,9 +116,7 @@ def test_session_with_boards_end_to_end(tmp_path: Path) -> None:
     run = _simulate(tmp_path / "boards", preset="boards", seed=1, width=640, height=480, image_noise=2.0)
     truth = _rough_guess(run, tmp_path / "rough.yaml")
     out = tmp_path / "calib.yaml"
-    start = time.monotonic()
     result = _calibrate_with_board(run, tmp_path / "rough.yaml", out)
-    elapsed = time.monotonic() - start
     assert result.returncode == 0, result.stderr
     extrinsic = json.loads(result.stdout)["extrinsic"]
     assert extrinsic["method"] == "target-based (board planes)"
@@ -136,7 +133,6 @@ def test_session_with_boards_end_to_end(tmp_path: Path) -> None:
     assert rot < 3 * extrinsic["rotation_std_deg"] and trans < 3 * extrinsic["translation_std_m"]
     assert extrinsic["rotation_std_deg"] <= 0.1 and extrinsic["translation_std_m"] <= 0.01
     assert abs(written.time_offset_s - truth.time_offset_s) < 0.002
-    assert elapsed < 60, elapsed
 
 
 def test_one_board_seen_is_poorly_constrained(tmp_path: Path) -> None:
