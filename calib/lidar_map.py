@@ -3,26 +3,25 @@ moment, and the points of all its sweeps in one world frame.
 
 The trajectory is the fallback mapper's odometry (scan-to-map VGICP on the raw sweeps, each pose
 stamped when it holds, :class:`rig.lidar_odometry.SweepOdometry`); the sweeps are then de-skewed
-with it, the points of moving things (that other sweeps see through,
-:mod:`rig.dynamic_points`) set apart, and the rest merged, one point per voxel. Calibration cannot wait for the mapper (it runs before
-it, and ``rig`` → ``calib`` → ``slam_bridge``), but the odometry and the thinning are the same
-code.
+with it, the points of moving things (that other sweeps see through, :mod:`rig.dynamic_points`)
+set apart, and the rest merged, one point per voxel. Calibration cannot wait for the mapper (it
+runs before it, and ``rig`` → ``calib`` → ``slam_bridge``), but the odometry, the thinning and
+the test for moving points are the same code.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from rig.deskew import deskewed_points
+from rig.deskew import deskewed_sweep
 from rig.dynamic_points import DEFAULT_DYNAMIC, label_dynamic
 from rig.errors import InputError
 from rig.lidar_odometry import SweepOdometry, thinned, usable_sweep, voxel_for_ranges
 from rig.messages import Scan
 from rig.trajectory import Trajectory
-from rig.transforms import invert, transform_points
 
 #: Sweeps are thinned to this many points before anything else (the mapper's default).
 POINTS_PER_SWEEP = 32_000
@@ -81,21 +80,18 @@ def build_lidar_map(scans: Sequence[Scan]) -> LidarMap:
         poses.append(pose)
     trajectory = Trajectory.from_poses(np.array(t_ns, dtype=np.int64), np.stack(poses))
 
-    def de_skewed() -> Iterator[tuple[float, np.ndarray, np.ndarray]]:
-        for scan, (points, times) in used:
-            point_t_ns = int(scan.t_host) + np.round(times * 1e9).astype(np.int64)
-            T_world_lidar = trajectory.interpolate(int(scan.t_host), clamp=True)
-            world = deskewed_points(points, point_t_ns, trajectory)
-            yield scan.t_host * 1e-9, transform_points(invert(T_world_lidar), world), T_world_lidar
-
+    de_skewed = (
+        deskewed_sweep(points, _point_t_ns(scan, times), int(scan.t_host), trajectory)
+        for scan, (points, times) in used
+    )
     map_voxel = voxel * MAP_VOXEL_PER_ODOMETRY_VOXEL
     still, moving, moving_t_ns = [], [], []
-    for index, view, dynamic in label_dynamic(de_skewed(), DEFAULT_DYNAMIC):
+    for index, view, dynamic in label_dynamic(de_skewed, DEFAULT_DYNAMIC):
         scan, (_, times) = used[index]
         kept = view.points_world[~dynamic]
         still.append(kept[_one_per_voxel(kept, map_voxel)])
         moving.append(view.points_world[dynamic])
-        moving_t_ns.append(int(scan.t_host) + np.round(times[dynamic] * 1e9).astype(np.int64))
+        moving_t_ns.append(_point_t_ns(scan, times[dynamic]))
     points = np.vstack(still)
     points = points[_one_per_voxel(points, map_voxel)]
     moving_t = np.concatenate(moving_t_ns)
@@ -103,6 +99,11 @@ def build_lidar_map(scans: Sequence[Scan]) -> LidarMap:
     return LidarMap(
         trajectory, points[thinned(len(points), MAP_POINTS)], np.vstack(moving)[order], moving_t[order]
     )
+
+
+def _point_t_ns(scan: Scan, times: np.ndarray) -> np.ndarray:
+    """Host-clock times ``(N,)`` int64 of a sweep's points from their offsets ``times`` (s)."""
+    return int(scan.t_host) + np.round(times * 1e9).astype(np.int64)
 
 
 def _one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:

@@ -29,7 +29,7 @@ from scipy.optimize import minimize
 from calib.lidar_map import LidarMap
 from calib.targetless import ExtrinsicResult, apply_increment, working_image, working_pixels
 from rig.camera import CameraModel
-from rig.transforms import invert
+from rig.transforms import invert, transform_points
 
 #: Gaussian blurs (pixels at the working width, 960) of the coarse-to-fine stages: the first
 #: ones let a guess 10° off find the way (10° is 170 px at 960 px for a 90° field of view).
@@ -123,9 +123,9 @@ class _Problem:
         self.height, self.width = self.grays[0].shape
         #: (F, N, 3) map points in each frame's LiDAR frame (they do not depend on the extrinsic).
         lidar_world = [invert(f.T_world_lidar) for f in frames]
-        self.lidar_points = np.stack([world @ T[:3, :3].T + T[:3, 3] for T in lidar_world])
+        self.lidar_points = np.stack([transform_points(T, world) for T in lidar_world])
         #: Each frame's occluders in its LiDAR frame (``(K_f, 3)``; they hide, they are not scored).
-        self.occluders = [f.occluders @ T[:3, :3].T + T[:3, 3] for f, T in zip(frames, lidar_world, strict=True)]
+        self.occluders = [transform_points(T, f.occluders) for f, T in zip(frames, lidar_world, strict=True)]
         self.images = self.grays
 
     def blur(self, sigma: float) -> None:

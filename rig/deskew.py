@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from rig.trajectory import Trajectory
+from rig.transforms import invert, transform_points
 
 #: Point times are rounded down to this step (ns) before poses are interpolated. On the virtual
 #: rig's quick room (30 sweeps of 8000 points) 0.1 ms keeps every point within 0.10 mm of its
@@ -27,3 +28,14 @@ def deskewed_points(
     poses = trajectory.interpolate(steps * step_ns, clamp=True)
     rotated = np.einsum("nij,nj->ni", poses[index, :3, :3], np.asarray(points, dtype=np.float64))
     return rotated + poses[index, :3, 3]
+
+
+def deskewed_sweep(
+    points: np.ndarray, point_t_ns: np.ndarray, t_ns: int, trajectory: Trajectory
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """A sweep :func:`deskewed_points` and brought back into the sensor frame at its stamp
+    ``t_ns``, as :func:`rig.dynamic_points.label_dynamic` takes it: the stamp in seconds, the points
+    ``(N, 3)`` float64 and ``T_world_sensor`` ``(4, 4)`` there (held at the trajectory's ends)."""
+    T_world_sensor = trajectory.interpolate(int(t_ns), clamp=True)
+    world = deskewed_points(points, point_t_ns, trajectory)
+    return t_ns * 1e-9, transform_points(invert(T_world_sensor), world), T_world_sensor

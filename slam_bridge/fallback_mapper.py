@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 
 from rig.deskew import deskewed_points
+from rig.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 from rig.errors import InputError
 from rig.lidar_odometry import (
     MAP_VOXELS_PER_VOXEL,
@@ -27,7 +28,6 @@ from rig.lidar_odometry import (
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, make_transform, transform_points
-from rig.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 from slam_bridge.mapping_quality import MappingQuality, judge_mapping
 
 # Rotations R_face_sensor of the six cube-map cameras: rows are the camera's x (right), y (down) and

@@ -13,11 +13,11 @@ import numpy as np
 
 from rig.calibration import Calibration
 from rig.camera import CameraModel
-from rig.deskew import deskewed_points
+from rig.deskew import deskewed_sweep
+from rig.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, transform_points
-from rig.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 from slam_bridge.keyframe_selection import lidar_clock
 from slam_bridge.scene import LIDAR_DIR, MOVING_DIR, Keyframe
 
@@ -82,10 +82,8 @@ def keyframe_lidar(
             wanted = np.searchsorted(hi, scan.t_host) < np.searchsorted(lo, scan.t_host, side="right")
             if not wanted and dynamic is None:
                 continue  # no keyframe wants it, and no other sweep compares with it
-            world = deskewed_points(scan.points, scan.point_times_ns(host=True), trajectory)
-            T_world_sensor = trajectory.interpolate(np.array([scan.t_host]), clamp=True)[0]
             stamps.append(int(scan.t_host))
-            yield scan.t_host * 1e-9, transform_points(invert(T_world_sensor), world), T_world_sensor
+            yield deskewed_sweep(scan.points, scan.point_times_ns(host=True), int(scan.t_host), trajectory)
 
     for index, view, moving in label_dynamic(sweeps(), dynamic):
         t_host = stamps[index]

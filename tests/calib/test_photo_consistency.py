@@ -36,7 +36,9 @@ def test_a_straight_drive_keeps_the_roll_about_and_the_shift_along_its_travel() 
     assert turn < MIN_TURN_DEG
     assert abs(abs(travel[0]) - 1.0) < 1e-3  # the LiDAR's x, the way it drives
 
-    T_init = make_transform(Rotation.from_euler("xyz", (-90, 0, -90), degrees=True).as_matrix(), (0.1, -0.2, 0.0))
+    T_init = make_transform(
+        Rotation.from_euler("xyz", (-90, 0, -90), degrees=True).as_matrix(), (0.1, -0.2, 0.0)
+    )
     travel_cam = T_init[:3, :3] @ travel
     params = _Parameters(T_init, _observable_basis(travel_cam))
     assert params.basis.shape == (6, 4)
@@ -79,7 +81,11 @@ def test_the_map_keeps_measured_points_one_per_voxel() -> None:
     chosen = points[kept]
     assert np.all((chosen[:, 2] == 0) | (chosen[:, 1] == 0))  # every one on a face
     keys = np.floor(chosen / 0.1).astype(int)
-    assert len(np.unique(keys, axis=0)) == len(kept) == len(np.unique(np.floor(points / 0.1).astype(int), axis=0))
+    assert (
+        len(np.unique(keys, axis=0))
+        == len(kept)
+        == len(np.unique(np.floor(points / 0.1).astype(int), axis=0))
+    )
 
 
 def test_moving_points_near_a_time() -> None:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from rig.sim.movers import Mover, MovingRaycaster, inside_movers
 from rig.dynamic_points import DynamicConfig, comparison_sweeps, dynamic_mask, sweep_view
+from rig.sim.movers import Mover, MovingRaycaster, inside_movers
 
 
 def _scene() -> tuple[trimesh.Trimesh, Mover]:
