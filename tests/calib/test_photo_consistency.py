@@ -6,10 +6,14 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from calib import photo_consistency
 from calib.lidar_map import LidarMap, _one_per_voxel
 from calib.photo_consistency import (
+    MIN_RISE,
     MIN_TURN_DEG,
+    PROFILE_STEP_M,
     ConsistencyFrame,
+    _flat_translations,
     _observable_basis,
     _Parameters,
     _Problem,
@@ -94,3 +98,20 @@ def test_moving_points_near_a_time() -> None:
     lidar_map = LidarMap(trajectory, np.zeros((0, 3)), np.arange(30.0).reshape(10, 3), t_ns)
     near = lidar_map.moving_near(100_000_000)  # 100 ms: the points at 60..140 ms
     np.testing.assert_array_equal(near[:, 0], [9.0, 12.0, 15.0, 18.0, 21.0])
+
+
+def test_a_flat_valley_along_a_translation_is_named(monkeypatch) -> None:
+    """The profile check: a cost that rises steeply along the camera's x and z but by only a
+    third of :data:`MIN_RISE` 10 cm along its y (a robot that turns about the vertical alone)
+    names y, and only y; rotations are not probed."""
+    curvature = np.array([1.0, 1.0, 1.0, 5.0, MIN_RISE / 3, 5.0])  # per (PROFILE_STEP_M)^2
+
+    def cost(problem, params, y) -> float:
+        return 1.0 + float(curvature @ (y / (PROFILE_STEP_M * 10.0)) ** 2)
+
+    monkeypatch.setattr(photo_consistency, "_self_cost", cost)
+    params = _Parameters(np.eye(4), np.eye(6))
+    reasons = _flat_translations(None, params, np.zeros(6))
+    assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "1.0 %" in reasons[0]
+    curvature[4] = 2 * MIN_RISE
+    assert _flat_translations(None, params, np.zeros(6)) == []
