@@ -61,7 +61,7 @@ MIN_SEEN_FRACTION = 0.7
 #: A result is told apart from the points PROFILE_STEP_M away along each free translation only
 #: when they cost at least MIN_RISE more (:func:`_flat_translations`). At the truth of the
 #: virtual room's 10 s seeds 0-2 the smallest rise 10 cm away is 9.4 / 5.7 / 7.6 %; a 20 s room
-#: run from the motion's guess ended 12.6 cm off along the robot's turning axis with 2.7 %, and
+#: run from the motion's guess ended 12.6 cm off along the robot's turning axis with 2.9 %, and
 #: its jackknife said ±1.5 cm.
 PROFILE_STEP_M = 0.1
 MIN_RISE = 0.03
@@ -372,14 +372,14 @@ def _out_of_the_valley(problem: _Problem, params: _Parameters, y: np.ndarray) ->
     return other if _self_cost(problem, params, other) < problem.cost(params.pose(y), obs) else y
 
 
-def _flat_translations(problem: _Problem, params: _Parameters, y: np.ndarray) -> list[str]:
-    """The free translations along which ``y`` is no clear minimum: a point :data:`PROFILE_STEP_M`
-    to either side costs less than :data:`MIN_RISE` more (each scored on the points visible
-    there, at the current blur); one line per such axis.
+def _flat_translations(problem: _Problem, params: _Parameters, y: np.ndarray, here: float) -> list[str]:
+    """The free translations along which ``y`` (whose own cost is ``here``, :func:`_self_cost`) is
+    no clear minimum: a point :data:`PROFILE_STEP_M` to either side costs less than
+    :data:`MIN_RISE` more (each scored on the points visible there, at the current blur); one
+    line per such axis.
 
     The jackknife cannot see a flat valley: every stretch of frames shares it (and the odometry's
     errors, which move its lowest point), so the stretches agree on a point anywhere along it."""
-    here = _self_cost(problem, params, y)
     step = PROFILE_STEP_M * 10.0  # decimetres
     flat = []
     for column in np.flatnonzero(~params.is_rotation()):
@@ -475,7 +475,7 @@ def photo_consistency_extrinsic(
             f"the search reached its bound ({SEARCH_REACH[0]:.0f}° / {SEARCH_REACH[1] * 10:.0f} cm from "
             "the guess)"
         )
-    reasons += _flat_translations(problem, params, y)
+    reasons += _flat_translations(problem, params, y, cost_final)  # on the points visible at y
     if cost_final >= cost_init:
         reasons.append(
             "the map's points agree no better across frames than at the initial guess: kept the guess"

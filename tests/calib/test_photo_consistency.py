@@ -111,7 +111,7 @@ def test_a_flat_valley_along_a_translation_is_named(monkeypatch) -> None:
 
     monkeypatch.setattr(photo_consistency, "_self_cost", cost)
     params = _Parameters(np.eye(4), np.eye(6))
-    reasons = _flat_translations(None, params, np.zeros(6))
+    reasons = _flat_translations(None, params, np.zeros(6), 1.0)
     assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "1.0 %" in reasons[0]
     curvature[4] = 2 * MIN_RISE
-    assert _flat_translations(None, params, np.zeros(6)) == []
+    assert _flat_translations(None, params, np.zeros(6), 1.0) == []
