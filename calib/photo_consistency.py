@@ -10,12 +10,13 @@ LiDAR but geometry, and every frame's parallax constrains the translation.
 Coarse to fine over image blurs (:data:`BLUR_STAGES`), a derivative-free 6-DoF search per blur,
 each seeing the map points visible (z-buffer of the map and the frame's moving things) in at least
 :data:`MIN_VIEWS` frames at its start; then a scan along each axis for a deeper minimum
-(:func:`_out_of_the_valley`). A straight drive leaves two axes unobserved; they are kept from the
-guess (:func:`_straight_travel`). Grey levels are standardised per frame (auto-exposure), and the
-worst :data:`TRIM` of the points (specular surfaces, points hidden by something the LiDAR missed)
-are left out of the mean. Uncertainty: a jackknife over stretches of frames (:func:`_covariance`),
-and a check that the result is a clear minimum along every free translation
-(:func:`_flat_translations`), which the jackknife cannot see.
+(:func:`_out_of_the_valley`) and a descent along the free translations, each step scored on the
+points visible where it lands (:func:`_descend_translations`). A straight drive leaves two axes
+unobserved; they are kept from the guess (:func:`_straight_travel`). Grey levels are standardised
+per frame (auto-exposure), and the worst :data:`TRIM` of the points (specular surfaces, points
+hidden by something the LiDAR missed) are left out of the mean. Uncertainty: a jackknife over
+stretches of frames (:func:`_covariance`), and a check that the result is a clear minimum along
+every free translation (:func:`_flat_translations`), which the jackknife cannot see.
 """
 
 from __future__ import annotations
