@@ -3,6 +3,8 @@ what hides a map point, and which points the map keeps."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -13,6 +15,7 @@ from calib.photo_consistency import (
     MIN_TURN_DEG,
     PROFILE_STEP_M,
     ConsistencyFrame,
+    _descend_translations,
     _flat_translations,
     _observable_basis,
     _Parameters,
@@ -115,3 +118,24 @@ def test_a_flat_valley_along_a_translation_is_named(monkeypatch) -> None:
     assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "1.0 %" in reasons[0]
     curvature[4] = 2 * MIN_RISE
     assert _flat_translations(None, params, np.zeros(6), 1.0) == []
+
+
+def test_the_last_descent_walks_a_flat_valley_and_keeps_the_better_end(monkeypatch) -> None:
+    """A cost whose lowest point lies 12 cm along the camera's y (and 0.5° about its x) from
+    where the searches stopped: the descent moves only the translations and ends within its
+    finest step of 12 cm; the search of every axis afterwards is kept only where it costs less."""
+    lowest = np.array([0.5, 0.0, 0.0, 0.0, 1.2, 0.0])  # degrees, decimetres
+
+    def cost(problem, params, y) -> float:
+        return 1.0 + float(np.sum((y - lowest) ** 2))
+
+    monkeypatch.setattr(photo_consistency, "_self_cost", cost)
+    params, problem = _Parameters(np.eye(4), np.eye(6)), SimpleNamespace(grays=[None] * 4)
+    walks_back = lambda problem, params, y, frames, xtol: np.zeros(6)  # noqa: E731
+    monkeypatch.setattr(photo_consistency, "_search", walks_back)
+    y = _descend_translations(problem, params, np.zeros(6))
+    assert abs(y[4] - 1.2) <= 0.25 / 2 and np.allclose(np.delete(y, 4), 0.0)
+    monkeypatch.setattr(photo_consistency, "_search", lambda problem, params, y, frames, xtol: lowest)
+    assert np.allclose(_descend_translations(problem, params, np.zeros(6)), lowest)
+    start = lowest.copy()  # no step helps: the start comes back untouched
+    assert _descend_translations(problem, params, start) is start
