@@ -57,6 +57,13 @@ def test_bad_input_is_one_line_error(tmp_path) -> None:
     assert result.returncode == 2 and "img.png" in result.stderr and "Traceback" not in result.stderr
 
 
+def test_a_forgotten_recording_is_named(tmp_path) -> None:
+    """``lts calibrate --out calib.yaml``: the error names the missing recording, not the option."""
+    result = _lts("calibrate", "--out", tmp_path / "c.yaml")
+    assert result.returncode == 2 and "RECORDING" in result.stderr and "No such option" not in result.stderr
+    assert "Commands" in _lts("calibrate", "--help").stdout
+
+
 def _camera():
     from rig.camera import CameraModel
 
