@@ -185,9 +185,10 @@ class _Problem:
         visible = self.visible(T)[frames]
         visible[:, visible.sum(axis=0) < MIN_VIEWS] = False
         rows, points = np.nonzero(visible)  # row-major: grouped by frame
-        map_index, compact = np.unique(points, return_inverse=True)
-        xyz = np.hstack([self.frame_points[frames[r]][:, points[rows == r]] for r in range(len(frames))])
-        return _Observations(xyz, frames[rows], compact, map_index, self.height)
+        observed, compact = np.unique(points, return_inverse=True)
+        per_frame = np.split(points, np.searchsorted(rows, np.arange(1, len(frames))))
+        xyz = np.hstack([self.frame_points[f][:, p] for f, p in zip(frames, per_frame, strict=True)])
+        return _Observations(xyz, frames[rows], compact, len(observed), self.height)
 
     def spreads(self, T: np.ndarray, obs: _Observations) -> tuple[np.ndarray, float]:
         """Each observed point's grey-level variance over the frames that see it ``(n_points,)``
@@ -230,23 +231,16 @@ class _Problem:
 
 class _Observations:
     """Flat (frame, point) observations, grouped by frame: the point in the frame's LiDAR
-    coordinates ``(3, M)`` float32, the frame index ``(M,)``, the point's index ``(M,)`` among the
-    observed points, whose map indices are ``map_index`` ``(n_points,)``; ``image_height`` the
-    frames' (the images are stacked)."""
+    coordinates ``xyz`` ``(3, M)`` float32, its frame index ``frame`` ``(M,)`` and its index
+    ``point`` ``(M,)`` among the ``n_points`` observed points; ``image_height`` the frames' (the
+    images are stacked)."""
 
     def __init__(
-        self,
-        xyz: np.ndarray,
-        frame: np.ndarray,
-        point: np.ndarray,
-        map_index: np.ndarray,
-        image_height: int,
+        self, xyz: np.ndarray, frame: np.ndarray, point: np.ndarray, n_points: int, image_height: int
     ) -> None:
-        self.frame, self.point, self.map_index = frame, point, map_index
-        self.xyz = xyz
+        self.xyz, self.point, self.n_points = xyz, point, n_points
         #: ``(M,)`` the first row of each observation's frame in the stacked images.
         self.row_offset = frame.astype(np.float32) * image_height
-        self.n_points = len(map_index)
         #: Each frame's run in the flat arrays: first index and length ``(R,)``.
         self.run_starts = np.flatnonzero(np.r_[True, frame[1:] != frame[:-1]]) if len(frame) else frame
         self.run_lengths = np.diff(np.r_[self.run_starts, len(frame)])
