@@ -1,4 +1,5 @@
-"""Point cloud files: PCD (ascii, binary, binary_compressed) and KITTI Velodyne ``.bin``.
+"""Point cloud files: PCD (ascii, binary, binary_compressed), KITTI Velodyne ``.bin`` and nuScenes
+``.pcd.bin``.
 
 The PCD header is checked here (so errors name the file and the field); the payload is decoded by
 Open3D's tensor reader, which keeps every field and handles all three encodings.
@@ -198,29 +199,42 @@ def read_pcd(path: str | Path) -> PointCloud:
     return PointCloud(points[finite], intensity[finite])
 
 
-def read_kitti_bin(path: str | Path) -> PointCloud:
-    """Read a KITTI Velodyne scan: float32 records ``x y z reflectance``."""
+def read_float_records(path: str | Path, fields: int) -> PointCloud:
+    """Read a headerless scan of float32 records whose first four fields are ``x y z intensity``:
+    KITTI Velodyne ``.bin`` (4 fields) or nuScenes ``.pcd.bin`` (5: ``x y z intensity ring``)."""
     path = Path(path)
     try:
         raw = np.fromfile(path, dtype="<f4")
     except OSError as exc:
         raise InputError(f"cannot read ({exc.strerror})", path=path) from None
-    if raw.size % 4:
+    if raw.size % fields:
         raise InputError(
-            f"{raw.size * 4} bytes is not a whole number of 16-byte records", path=path, field="data"
+            f"{raw.size * 4} bytes is not a whole number of {4 * fields}-byte records",
+            path=path,
+            field="data",
         )
-    data = raw.reshape(-1, 4)
+    data = raw.reshape(-1, fields)
     # As for PCD: a point with a NaN/Inf coordinate is no return, not a point.
     finite = np.all(np.isfinite(data[:, :3]), axis=1)
     return PointCloud(data[finite, :3].astype(np.float64), data[finite, 3].copy())
 
 
+def read_kitti_bin(path: str | Path) -> PointCloud:
+    """Read a KITTI Velodyne scan: float32 records ``x y z reflectance``."""
+    return read_float_records(path, 4)
+
+
 def read_point_cloud(path: str | Path) -> PointCloud:
-    """Read a ``.pcd`` or KITTI ``.bin`` point cloud by file extension."""
+    """Read a ``.pcd``, a nuScenes ``.pcd.bin`` or a KITTI ``.bin`` point cloud by file extension."""
     path = Path(path)
     suffix = path.suffix.lower()
+    if path.name.lower().endswith(".pcd.bin"):
+        return read_float_records(path, 5)
     if suffix == ".pcd":
         return read_pcd(path)
     if suffix == ".bin":
         return read_kitti_bin(path)
-    raise InputError(f"unknown point cloud format {suffix!r}; expected .pcd or .bin", path=path)
+    raise InputError(
+        f"unknown point cloud format {suffix!r}; expected .pcd, .pcd.bin (nuScenes) or .bin (KITTI)",
+        path=path,
+    )

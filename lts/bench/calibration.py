@@ -25,7 +25,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from calib.targetless import ExtrinsicResult
+from calib.targetless import ExtrinsicPair, ExtrinsicResult
+from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.transforms import distance_and_angle, make_transform
 
@@ -37,8 +38,9 @@ SUCCESS_M = 0.05
 INTERVAL_95 = 1.96
 NO_GUESS = "none"
 DEFAULT_GUESSES = ("0/0", "2/10", "10/30", NO_GUESS)
-#: The source name of the KITTI object-layout frames in the table.
+#: The source names of the KITTI object-layout frames and the nuScenes sample's cameras in the table.
 KITTI_SOURCE = "kitti"
+NUSCENES_SOURCE = "nuscenes"
 
 
 @dataclass(frozen=True)
@@ -189,22 +191,27 @@ def _session_rows(
     return rows
 
 
-def _kitti_rows(folder: Path, guesses: Sequence[Guess], log: Callable[[str], None]) -> list[dict[str, Any]]:
-    """The trials of every frame of a KITTI object-layout folder, each frame alone (no motion, so
-    no trial without a guess)."""
-    from calib.kitti_frames import kitti_frame_names, read_kitti_frame
+def _frame_rows(
+    source: str,
+    frames: Sequence[str],
+    read: Callable[[str], tuple[ExtrinsicPair, CameraModel, np.ndarray]],
+    guesses: Sequence[Guess],
+    log: Callable[[str], None],
+) -> list[dict[str, Any]]:
+    """The trials of single real frames, each alone (no motion, so no trial without a guess):
+    ``read(frame)`` gives a frame's image + cloud, its camera and the dataset's reference."""
     from calib.targetless import refine_extrinsic
 
     rows = []
-    for index, name in enumerate(kitti_frame_names(folder)):
-        pair, camera, truth = read_kitti_frame(folder, name)
+    for index, name in enumerate(frames):
+        pair, camera, truth = read(name)
 
         def refine(T_init: np.ndarray, pair=pair, camera=camera) -> ExtrinsicResult:
             return refine_extrinsic([pair], camera, T_init)
 
         for guess in guesses:
             trial = _trial(refine, truth, _guess_for(guess, truth, index, None))
-            rows.append({"source": KITTI_SOURCE, "seed": index, "frame": name, "guess": guess.label, **trial})
+            rows.append({"source": source, "seed": index, "frame": name, "guess": guess.label, **trial})
             log(_trial_line(rows[-1]))
     return rows
 
@@ -240,17 +247,28 @@ def bench_calib(
     out: Path,
     log: Callable[[str], None],
     kitti_frames: Path | None = None,
+    nuscenes_sample: Path | None = None,
 ) -> dict[str, Any]:
-    """Run every preset × seed × guess, and every frame of ``kitti_frames`` × guess (see the
-    module docstring); returns the JSON table."""
+    """Run every preset × seed × guess, every frame of ``kitti_frames`` and every camera of
+    ``nuscenes_sample`` × guess (see the module docstring); returns the JSON table."""
+    from calib.kitti_frames import kitti_frame_names, read_kitti_frame
+    from calib.nuscenes_sample import nuscenes_camera_names, read_nuscenes_camera
+
     rows: list[dict[str, Any]] = []
     for preset in presets:
         for seed in seeds:
             rows += _session_rows(out, preset, seed, duration_s, guesses, log)
     sources = list(presets)
     if kitti_frames is not None:
-        rows += _kitti_rows(kitti_frames, guesses, log)
+        names = kitti_frame_names(kitti_frames)
+        rows += _frame_rows(KITTI_SOURCE, names, lambda n: read_kitti_frame(kitti_frames, n), guesses, log)
         sources.append(KITTI_SOURCE)
+    if nuscenes_sample is not None:
+        names = nuscenes_camera_names(nuscenes_sample)
+        rows += _frame_rows(
+            NUSCENES_SOURCE, names, lambda n: read_nuscenes_camera(nuscenes_sample, n), guesses, log
+        )
+        sources.append(NUSCENES_SOURCE)
     summary = {
         source: {
             g.label: _summary([r for r in rows if r["source"] == source and r["guess"] == g.label])

@@ -160,7 +160,7 @@ def bench_calib_command(
         None,
         "--sim",
         help="Virtual-rig presets to simulate (repeat: --sim room --sim street); default room, none "
-        "when only --kitti-frames is given.",
+        "when --kitti-frames or --nuscenes-sample is given.",
     ),
     seeds: int = typer.Option(3, "--seeds", min=1, help="Sessions per preset: seeds 0 to N-1."),
     guess: list[str] = typer.Option(
@@ -177,22 +177,35 @@ def bench_calib_command(
         help="Also each frame of a folder in KITTI's object layout (calib/NAME.txt, image_2/NAME.png, "
         "velodyne/NAME.bin; reference: its target-based calibration), one frame at a time.",
     ),
+    nuscenes_sample: Path | None = typer.Option(
+        None,
+        "--nuscenes-sample",
+        help="Also each camera of a nuScenes sample (calib.json naming one LiDAR sweep .pcd.bin and "
+        "the cameras' images, intrinsics and reference with the car's motion between the stamps), one "
+        "camera at a time.",
+    ),
     out: Path = OUT_OPTION,
     json_out: bool = JSON_OPTION,
 ) -> None:
     """Calibration from a recording: accuracy, success rate, honesty of the verdict and coverage of
     the reported spread of the targetless extrinsic (and the time offset), over seeds × guesses."""
     from calib.kitti_frames import kitti_frame_names
+    from calib.nuscenes_sample import nuscenes_camera_names
     from lts.bench.calibration import DEFAULT_GUESSES, bench_calib, parse_guess
     from rig.sim.scenes import get_preset
 
     guesses = [parse_guess(g) for g in guess or DEFAULT_GUESSES]
-    sim = sim or ([] if kitti_frames is not None else ["room"])
+    real = kitti_frames is not None or nuscenes_sample is not None
+    sim = sim or ([] if real else ["room"])
     for preset in sim:
         get_preset(preset)  # an unknown preset stops here, before any session is simulated
     if kitti_frames is not None:
         kitti_frame_names(kitti_frames)  # a folder without frames stops here, before any simulation
-    result = bench_calib(sim, range(seeds), guesses, duration, out / "calib", _log, kitti_frames)
+    if nuscenes_sample is not None:
+        nuscenes_camera_names(nuscenes_sample)
+    result = bench_calib(
+        sim, range(seeds), guesses, duration, out / "calib", _log, kitti_frames, nuscenes_sample
+    )
     _print_calib(result)
     _finish(result, json_out)
 

@@ -71,6 +71,7 @@ def test_bench_scores_each_guess_against_the_truth(tmp_path):
         (["--sim", "rooom"], "preset"),
         (["--seeds", "0"], "--seeds"),
         (["--kitti-frames", "nowhere"], "nowhere"),
+        (["--nuscenes-sample", "nowhere"], "nowhere"),
     ],
 )
 def test_usage_errors_are_one_line(tmp_path, args, field):
@@ -106,3 +107,20 @@ def test_bench_runs_each_kitti_frame_alone(real_data, tmp_path):
             assert row["init_translation_error_m"] == pytest.approx(0.10)
             assert row["false_ok"] is False
     assert result["sources"] == ["kitti"]
+
+
+@pytest.mark.slow
+def test_bench_runs_each_nuscenes_camera_alone(real_data, tmp_path):
+    folder = real_data / "nuscenes_sample"
+    result = bench_calib([], [], [Guess(0.0, 0.0)], 10.0, tmp_path, lambda _: None, nuscenes_sample=folder)
+    rows = result["rows"]
+    assert [r["frame"] for r in rows] == [
+        "CAM_FRONT",
+        "CAM_FRONT_RIGHT",
+        "CAM_FRONT_LEFT",
+        "CAM_BACK",
+        "CAM_BACK_LEFT",
+        "CAM_BACK_RIGHT",
+    ]
+    assert result["sources"] == ["nuscenes"]
+    assert all(r["false_ok"] is False and r["init_rotation_error_deg"] < 1e-6 for r in rows)

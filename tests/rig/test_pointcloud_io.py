@@ -44,6 +44,21 @@ def test_kitti_bin_round_trip_and_truncation(tmp_path) -> None:
         read_kitti_bin(path)
 
 
+def test_nuscenes_pcd_bin_is_five_fields_not_kitti(tmp_path) -> None:
+    """A nuScenes sweep ``*.pcd.bin`` (x y z intensity ring) whose size happens to be a whole number
+    of KITTI records was read as KITTI's four fields: every point after the first was garbage."""
+    xyz, inten = _cloud()
+    xyz, inten = xyz[:8], inten[:8]  # 8 records of 5 fields = 10 records of 4
+    path = tmp_path / "n015__LIDAR_TOP__1.pcd.bin"
+    np.column_stack([xyz, inten, np.arange(8)]).astype("<f4").tofile(path)
+    read = read_point_cloud(path)
+    np.testing.assert_allclose(read.points, xyz, rtol=1e-6)
+    np.testing.assert_allclose(read.intensity, inten, rtol=1e-6)
+    path.write_bytes(path.read_bytes()[:-4])
+    with pytest.raises(InputError, match=r"1\.pcd\.bin: data: .*20-byte records"):
+        read_point_cloud(path)
+
+
 def test_bad_files_name_file_and_field(tmp_path) -> None:
     bad = tmp_path / "bad.pcd"
     bad.write_text(
@@ -62,6 +77,9 @@ def test_real_clouds(real_data) -> None:
     manual = read_point_cloud(real_data / "lidar_camera_pjlab/manual/0.pcd")  # ascii
     auto = read_point_cloud(real_data / "lidar_camera_pjlab/auto/calib.pcd")  # binary_compressed
     kitti = read_point_cloud(real_data / "kitti_frames/velodyne/000000.bin")
+    (nuscenes,) = (read_point_cloud(p) for p in (real_data / "nuscenes_sample").glob("*.pcd.bin"))
+    assert len(nuscenes) == 34688 and nuscenes.intensity.max() == 255.0
+    assert np.median(np.linalg.norm(nuscenes.points, axis=1)) < 30  # metres, not a misread
     assert (len(manual), len(auto)) == (78238, 85546)
     assert len(kitti) > 100_000 and kitti.intensity.max() <= 1.0
     assert auto.intensity.max() == pytest.approx(254.0)
