@@ -18,21 +18,29 @@ import numpy as np
 from calib.board_session import BoardGeometry, calibrate_board_session
 from calib.lidar_map import LidarMap, build_lidar_map
 from calib.motion import camera_angular_velocity, imu_angular_velocity, lidar_angular_velocity
-from calib.photo_consistency import ConsistencyFrame, photo_consistency_extrinsic
+from calib.photo_consistency import (
+    MAX_ROT_STD_DEG,
+    MAX_TRANS_STD_M,
+    ConsistencyFrame,
+    photo_consistency_extrinsic,
+)
 from calib.session_data import SessionData, frame_clouds, frame_times, load_session
 from calib.targetless import ExtrinsicPair, ExtrinsicResult, refine_extrinsic
-from calib.time_offset import TimeOffsetResult, estimate_time_offset
+from calib.time_offset import MAX_OFFSET_S, TimeOffsetResult, estimate_time_offset
 from rig.calibration import Calibration
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.session import DEFAULT_TOPICS, Recording, as_recording
 from rig.session.tf_static import tf_extrinsic
+from rig.trajectory import Trajectory
 
 #: Image + LiDAR pairs of the one-pair-at-a-time targetless extrinsic (a recording too short for a
 #: LiDAR map), and the frames of the photo-consistency one.
 EXTRINSIC_PAIRS = 6
 CONSISTENCY_FRAMES = 20
 LIDAR_MOTION = ("auto", "imu", "odometry")
+#: Half-width of the interval (seconds) over which the LiDAR's speed at a frame is measured.
+SPEED_WINDOW_S = 0.05
 
 
 def calibrate_time(
@@ -142,6 +150,45 @@ def consistency_frames(
     ]
 
 
+def offset_error(time_result: TimeOffsetResult, time_offset_s: float) -> float:
+    """How far (s) the time offset ``time_offset_s`` a step uses may lie from the truth: its
+    distance from the estimate plus the estimate's 95 % interval (1.96 σ); the whole search range
+    (:data:`~calib.time_offset.MAX_OFFSET_S`) when the motion gave no estimate."""
+    if not (np.isfinite(time_result.time_offset_s) and np.isfinite(time_result.std_s)):
+        return MAX_OFFSET_S
+    return min(abs(time_result.time_offset_s - time_offset_s) + 1.96 * time_result.std_s, MAX_OFFSET_S)
+
+
+def timing_reasons(
+    frame_t: np.ndarray,
+    trajectory: Trajectory,
+    motion: tuple[np.ndarray, np.ndarray] | None,
+    time_offset_s: float,
+    error_s: float,
+) -> list[str]:
+    """Why an extrinsic over frames taken at ``frame_t`` ``(K,)`` (camera clock, s) cannot vouch
+    for itself when the time offset it used may be ``error_s`` off: the fastest frame turns by its
+    angular speed (``motion``: camera times, rad/s) × ``error_s`` and moves by its speed along the
+    LiDAR's ``trajectory`` × ``error_s``. Past the extrinsic's own limits the frames' LiDAR poses
+    are wrong by more than the result may be, in a way its jackknife over frames cannot see (they
+    all share the offset)."""
+    turn = np.interp(frame_t, motion[0], motion[1]) if motion is not None and len(motion[0]) else np.zeros(1)
+    t_ns = np.round((frame_t - time_offset_s) * 1e9).astype(np.int64)
+    step = round(SPEED_WINDOW_S * 1e9)
+    ends = [trajectory.interpolate(t_ns + side, clamp=True)[:, :3, 3] for side in (-step, step)]
+    speed = np.linalg.norm(ends[1] - ends[0], axis=1) / (2 * SPEED_WINDOW_S)
+    rotation_deg, translation_m = float(np.degrees(turn.max()) * error_s), float(speed.max() * error_s)
+    if rotation_deg <= MAX_ROT_STD_DEG and translation_m <= MAX_TRANS_STD_M:
+        return []
+    return [
+        f"the time offset used ({time_offset_s * 1e3:.1f} ms) may be {error_s * 1e3:.0f} ms off: the "
+        f"fastest frame (turning {np.degrees(turn.max()):.0f}°/s, moving {speed.max():.2f} m/s) would "
+        f"then be {rotation_deg:.2f}° and {translation_m * 100:.1f} cm from where it was taken (limits "
+        f"{MAX_ROT_STD_DEG}° / {MAX_TRANS_STD_M * 100:.1f} cm); record turns that speed up and slow "
+        "down to pin the offset, or give it with --init"
+    ]
+
+
 def session_extrinsic(
     data: SessionData,
     camera: CameraModel,
@@ -150,18 +197,26 @@ def session_extrinsic(
     T_init: np.ndarray,
     board: BoardGeometry | None = None,
     lidar_map: LidarMap | None = None,
+    offset_error_s: float = 0.0,
 ) -> ExtrinsicResult:
     """The extrinsic step of :func:`calibrate_session`: from the chessboard ``board`` when given,
     else targetless from the rough ``T_init`` ``(4, 4)``: photo-consistency of the recording's
     LiDAR map over many frames (``lidar_map``, built here when not given), or one image + LiDAR
-    pair at a time (:func:`extrinsic_pairs`) when the recording has no map."""
+    pair at a time (:func:`extrinsic_pairs`) when the recording has no map. ``offset_error_s``
+    (:func:`offset_error`) bounds how far ``time_offset_s`` may be off; a photo-consistency result
+    whose frames it would move too far is ``poorly constrained`` (:func:`timing_reasons`)."""
     if board is not None:
         return calibrate_board_session(data, camera, board, time_offset_s, T_init)
     lidar_map = lidar_map or session_lidar_map(data)
     if lidar_map is None:
         return refine_extrinsic(extrinsic_pairs(data, time_offset_s, motion), camera, T_init)
     frames = consistency_frames(data, lidar_map, time_offset_s, motion)
-    return photo_consistency_extrinsic(frames, camera, lidar_map, T_init)
+    result = photo_consistency_extrinsic(frames, camera, lidar_map, T_init)
+    frame_t = frame_times(data)[calm_frames(data, motion, CONSISTENCY_FRAMES)]  # as consistency_frames
+    if doubts := timing_reasons(frame_t, lidar_map.trajectory, motion, time_offset_s, offset_error_s):
+        result.reasons += doubts
+        result.verdict = "poorly constrained"
+    return result
 
 
 def calibrate_session(
@@ -229,7 +284,12 @@ def calibrate_session(
             if board is not None
             else f"extrinsic: LiDAR map, then photo-consistency over {CONSISTENCY_FRAMES} frames (1-3 min)"
         )
-        result = session_extrinsic(data, camera, calibration.time_offset_s, motion, T_init, board)
+        # An offset given with --init is taken as given; one estimated here is as good as its interval.
+        trusted = init is not None and time_result.verdict != "ok"
+        offset_doubt = 0.0 if trusted else offset_error(time_result, calibration.time_offset_s)
+        result = session_extrinsic(
+            data, camera, calibration.time_offset_s, motion, T_init, board, offset_error_s=offset_doubt
+        )
         report["extrinsic"] = result.to_json()
         # As with the time offset: a result that cannot vouch for itself does not replace the
         # guess (a refinement drifting away from a good start is what users of other tools meet).

@@ -153,7 +153,13 @@ def _session_rows(
     out: Path, preset: str, seed: int, duration_s: float, guesses: Sequence[Guess], log: Callable[[str], None]
 ) -> list[dict[str, Any]]:
     """The trials of one simulated session: its time offset once, then the extrinsic per guess."""
-    from calib.session_calib import calibrate_time, motion_guess, session_extrinsic, session_lidar_map
+    from calib.session_calib import (
+        calibrate_time,
+        motion_guess,
+        offset_error,
+        session_extrinsic,
+        session_lidar_map,
+    )
     from calib.session_data import load_session
     from rig.calibration import load_calibration
 
@@ -180,7 +186,15 @@ def _session_rows(
     session["map_seconds"] = time.perf_counter() - start
 
     def refine(T_init: np.ndarray) -> ExtrinsicResult:
-        return session_extrinsic(data, data.camera, offset, motion, T_init, lidar_map=lidar_map)
+        return session_extrinsic(
+            data,
+            data.camera,
+            offset,
+            motion,
+            T_init,
+            lidar_map=lidar_map,
+            offset_error_s=offset_error(time_result, offset),
+        )
 
     motion_start = motion_guess(time_result)
     rows = []
