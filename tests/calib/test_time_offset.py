@@ -60,3 +60,12 @@ def test_too_few_samples_is_refused() -> None:
     result = estimate_time_offset(t_cam[:5], w_cam[:5], t_imu, w_imu)
     assert result.verdict == "poorly constrained"
     assert "too few" in result.reasons[0]
+
+
+def test_frames_are_compared_a_sixth_of_a_second_apart_at_any_rate():
+    from calib.motion import frame_gap
+
+    assert frame_gap(np.arange(10) * 33_333_333) == 5  # 30 fps
+    assert frame_gap(np.arange(10) * 100_000_000) == 2  # 10 Hz (KITTI)
+    assert frame_gap(np.arange(10) * 500_000_000) == 1  # 2 Hz: neighbours
+    assert frame_gap(np.array([0])) == 1
