@@ -63,10 +63,21 @@ def test_session_command_writes_calibration(room_session: Path, tmp_path: Path) 
     np.testing.assert_allclose(written.camera.K, truth.camera.K)
     extrinsic = summary["extrinsic"]
     assert extrinsic["method"].startswith("targetless (photo-consistency")
-    translation_m, angle = distance_and_angle(np.asarray(extrinsic["T_cam_lidar"]), truth.T_cam_lidar)
-    # From 2° / 10 cm off to within the benchmark's success bounds (0.2-0.3° / 1-2 cm on the
-    # 10 s room sessions of lts bench calib).
-    assert np.degrees(angle) < 0.5 and translation_m < 0.05
+    estimate = np.asarray(extrinsic["T_cam_lidar"])
+    translation_m, angle = distance_and_angle(estimate, truth.T_cam_lidar)
+    # From 2° / 10 cm off to within the benchmark's success bounds (0.1-0.2° / 0.5-4 cm on the
+    # 10 s room sessions of lts bench calib), but for the height: the robot turns about the
+    # vertical only, and on this 20 s room the cost along the camera's y has a second valley
+    # 10-12 cm above the truth, 2 % dearer at the true rotation. Where the result ends along it
+    # (3 or 11 cm, with time offsets 0.5 ms apart) it must say the frames hardly tell it.
+    assert np.degrees(angle) < 0.5
+    flat = [r for r in extrinsic["reasons"] if "hardly tell the translation" in r]
+    error_cm = 100 * (estimate[:3, 3] - truth.T_cam_lidar[:3, 3])
+    if flat:
+        assert extrinsic["verdict"] != "ok" and "[0.0, 1.0, 0.0]" in flat[0], flat
+        assert np.hypot(error_cm[0], error_cm[2]) < 5.0, error_cm
+    else:
+        assert translation_m < 0.05
     if extrinsic["verdict"] == "ok":
         np.testing.assert_allclose(written.T_cam_lidar, extrinsic["T_cam_lidar"])
     assert written.quality["time"]["verdict"] == "ok"
