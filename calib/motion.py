@@ -18,11 +18,11 @@ from calib.kiss_odometry import KissOdometry
 from rig.camera import CameraModel
 from rig.messages import Frame, ImuSample, Scan
 
-#: Frames about this far apart (s) are compared: a longer baseline steadies the essential matrix.
-#: At 30 fps, 5 frames. Frames 2 apart (67 ms) left the camera's angular velocity on the hand-held
-#: virtual office 4.0-5.3 deg/s rms off the truth and its time offset refused on every seed; 5 apart,
-#: 1.8-2.1 deg/s and every offset within its interval, the room's within 1.7 ms (was 0.5 ms).
-PAIR_SPAN_S = 1 / 6
+#: How far apart (s) the compared frames are, by default (2 frames at 30 fps). A longer baseline
+#: (:data:`LONG_PAIR_SPAN_S`) steadies the essential matrix of a hand-held camera that translates
+#: while it turns, but tracks repetitive texture (a chessboard) across the wrong corners.
+PAIR_SPAN_S = 1 / 15
+LONG_PAIR_SPAN_S = 1 / 6
 MAX_FEATURES = 400
 MIN_TRACKS = 20
 #: Rotations above this between compared frames (rad) are decomposition failures, not motion.
@@ -58,22 +58,24 @@ def _relative_rotation(gray_a: np.ndarray, gray_b: np.ndarray, camera: CameraMod
     return R
 
 
-def frame_gap(stamps: np.ndarray) -> int:
+def frame_gap(stamps: np.ndarray, span_s: float = PAIR_SPAN_S) -> int:
     """How many frames apart (at least 1) the frames stamped ``stamps`` ``(N,)`` (ns) are compared:
-    about :data:`PAIR_SPAN_S` at their median rate."""
+    about ``span_s`` at their median rate."""
     frame_s = float(np.median(np.diff(stamps))) * 1e-9 if len(stamps) > 1 else 0.0
-    return max(1, round(PAIR_SPAN_S / frame_s)) if frame_s > 0 else 1
+    return max(1, round(span_s / frame_s)) if frame_s > 0 else 1
 
 
-def camera_angular_velocity(frames: Sequence[Frame], camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+def camera_angular_velocity(
+    frames: Sequence[Frame], camera: CameraModel, span_s: float = PAIR_SPAN_S
+) -> tuple[np.ndarray, np.ndarray]:
     """Angular velocity (rad/s, camera frame) from feature tracks and essential matrices.
 
-    Returns times ``(K,)`` (s, host clock, midpoints of frame pairs about ``PAIR_SPAN_S`` apart) and
+    Returns times ``(K,)`` (s, host clock, midpoints of frame pairs about ``span_s`` apart) and
     vectors ``(K, 3)``; pairs without enough tracks are left out.
     """
     grays = [to_gray(f.image) for f in frames]
     stamps = np.array([f.t_host for f in frames], dtype=np.int64)
-    gap = frame_gap(stamps)
+    gap = frame_gap(stamps, span_s)
     times, speeds = [], []
     for i in range(len(frames) - gap):
         j = i + gap

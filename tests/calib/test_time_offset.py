@@ -62,10 +62,11 @@ def test_too_few_samples_is_refused() -> None:
     assert "too few" in result.reasons[0]
 
 
-def test_frames_are_compared_a_sixth_of_a_second_apart_at_any_rate():
+def test_frames_are_compared_a_set_time_apart_at_any_rate():
     from calib.motion import frame_gap
 
-    assert frame_gap(np.arange(10) * 33_333_333) == 5  # 30 fps
-    assert frame_gap(np.arange(10) * 100_000_000) == 2  # 10 Hz (KITTI)
-    assert frame_gap(np.arange(10) * 500_000_000) == 1  # 2 Hz: neighbours
+    assert frame_gap(np.arange(10) * 33_333_333, 1 / 6) == 5  # 30 fps
+    assert frame_gap(np.arange(10) * 33_333_333) == 2  # the default span
+    assert frame_gap(np.arange(10) * 100_000_000, 1 / 6) == 2  # 10 Hz (KITTI)
+    assert frame_gap(np.arange(10) * 500_000_000, 1 / 6) == 1  # 2 Hz: neighbours
     assert frame_gap(np.array([0])) == 1
