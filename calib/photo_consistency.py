@@ -67,6 +67,11 @@ MIN_SEEN_FRACTION = 0.7
 #: its jackknife said ±1.5 cm.
 PROFILE_STEP_M = 0.1
 MIN_RISE = 0.03
+#: A step along a free translation whose plain rise is under REFIT_BELOW x MIN_RISE is scored
+#: again with the rotation re-fitted to it (:func:`_refit_rotation`, to REFIT_XTOL_DEG); steeper
+#: ones are left.
+REFIT_BELOW = 4
+REFIT_XTOL_DEG = 0.01
 #: The scans along each axis (:func:`_out_of_the_valley`): blur, reach (degrees and decimetres)
 #: and steps to each side.
 VALLEY_BLUR = 4.0
@@ -426,24 +431,51 @@ def _descend_translations(problem: _Problem, params: _Parameters, y: np.ndarray)
     return settled if _self_cost(problem, params, settled) < best else y
 
 
+def _refit_rotation(problem: _Problem, params: _Parameters, y: np.ndarray) -> np.ndarray:
+    """``y`` with its rotation coefficients re-fitted (Powell, the points visible at ``y``, the
+    translation held): where a step along a translation lands once the rotation follows it."""
+    obs = problem.observations(params.pose(y), np.arange(len(problem.grays)))
+    turns = params.is_rotation()
+
+    def cost(rotation: np.ndarray) -> float:
+        z = y.copy()
+        z[turns] = rotation
+        return problem.cost(params.pose(z), obs)
+
+    refitted = y.copy()
+    options = {"xtol": REFIT_XTOL_DEG, "ftol": 1e-6}
+    refitted[turns] = minimize(cost, y[turns], method="Powell", options=options).x
+    return refitted
+
+
 def _flat_translations(problem: _Problem, params: _Parameters, y: np.ndarray, here: float) -> list[str]:
     """The free translations along which ``y`` (whose own cost is ``here``, :func:`_self_cost`) is
     no clear minimum: a point :data:`PROFILE_STEP_M` to either side costs less than
-    :data:`MIN_RISE` more (each scored on the points visible there, at the current blur); one
-    line per such axis.
+    :data:`MIN_RISE` more (each scored on the points visible there, at the current blur, with the
+    rotation re-fitted to the step where the plain step rises less than :data:`REFIT_BELOW` ×
+    :data:`MIN_RISE`); one line per such axis.
 
     The jackknife cannot see a flat valley: every stretch of frames shares it (and the odometry's
-    errors, which move its lowest point), so the stretches agree on a point anywhere along it."""
+    errors, which move its lowest point), so the stretches agree on a point anywhere along it. A
+    turn makes up for a shift on far surfaces, so the valley runs along both: on the 20 s room a
+    result 13 cm above the truth rose 3.2 % 10 cm back down with its rotation held (a clear
+    minimum, ``ok``) and 1.9 % with the rotation re-fitted."""
     step = PROFILE_STEP_M * 10.0  # decimetres
     flat = []
     for column in np.flatnonzero(~params.is_rotation()):
-        rise = min(_self_cost(problem, params, y + sign * step * np.eye(len(y))[column]) for sign in (-1, 1))
+        rise = np.inf
+        for sign in (-1, 1):
+            stepped = y + sign * step * np.eye(len(y))[column]
+            cost = _self_cost(problem, params, stepped)
+            if cost < here * (1 + REFIT_BELOW * MIN_RISE):
+                cost = min(cost, _self_cost(problem, params, _refit_rotation(problem, params, stepped)))
+            rise = min(rise, cost)
         if rise < here * (1 + MIN_RISE):
             direction = np.round(params.basis[3:, column], 2).tolist()
             flat.append(
                 f"moving the camera {PROFILE_STEP_M * 100:.0f} cm along {direction} (camera frame) "
-                f"raises the cost by only {100 * (rise / here - 1):.1f} % (under {100 * MIN_RISE:.0f} %): "
-                "the frames hardly tell the translation along it"
+                f"raises the cost by only {100 * (rise / here - 1):.1f} % (under {100 * MIN_RISE:.0f} %, "
+                "the rotation following): the frames hardly tell the translation along it"
             )
     return flat
 

@@ -113,11 +113,40 @@ def test_a_flat_valley_along_a_translation_is_named(monkeypatch) -> None:
         return 1.0 + float(curvature @ (y / (PROFILE_STEP_M * 10.0)) ** 2)
 
     monkeypatch.setattr(photo_consistency, "_self_cost", cost)
+    monkeypatch.setattr(photo_consistency, "_refit_rotation", lambda problem, params, y: y)  # no coupling
     params = _Parameters(np.eye(4), np.eye(6))
     reasons = _flat_translations(None, params, np.zeros(6), 1.0)
     assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "1.0 %" in reasons[0]
     curvature[4] = 2 * MIN_RISE
     assert _flat_translations(None, params, np.zeros(6), 1.0) == []
+
+
+class _TiltedValley:
+    """A stand-in problem whose cost (of ``T_cam_lidar``) has a valley along the camera's y that a
+    turn about its x follows: a step of 10 cm up with the rotation held costs 2 × MIN_RISE more,
+    with the rotation turned 1° along with it almost nothing (a turn makes up for a shift on far
+    surfaces)."""
+
+    grays = (None,)  # one frame
+
+    def observations(self, T: np.ndarray, frames: np.ndarray) -> None:
+        return None
+
+    def cost(self, T: np.ndarray, obs: None) -> float:
+        turn = Rotation.from_matrix(T[:3, :3]).as_rotvec(degrees=True)
+        shift = T[:3, 3] / PROFILE_STEP_M
+        valley = 2 * MIN_RISE * (shift[1] - turn[0]) ** 2 + MIN_RISE / 10 * turn[0] ** 2
+        return 1.0 + valley + 5 * (shift[0] ** 2 + shift[2] ** 2) + turn[1] ** 2 + turn[2] ** 2
+
+
+def test_a_valley_that_a_turn_follows_is_named_with_the_rotation_refitted(monkeypatch) -> None:
+    """On the 20 s room a result 13 cm above the truth rose 3.2 % 10 cm back with its rotation held
+    and said ok; with the rotation re-fitted to the step the rise is 1.9 %."""
+    params = _Parameters(np.eye(4), np.eye(6))
+    reasons = _flat_translations(_TiltedValley(), params, np.zeros(6), 1.0)
+    assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "rotation following" in reasons[0]
+    monkeypatch.setattr(photo_consistency, "_refit_rotation", lambda problem, params, y: y)
+    assert _flat_translations(_TiltedValley(), params, np.zeros(6), 1.0) == []
 
 
 def test_the_last_descent_walks_a_flat_valley_and_keeps_the_better_end(monkeypatch) -> None:
