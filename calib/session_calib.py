@@ -9,7 +9,7 @@ Ouster and the virtual rig carry it in the LiDAR), otherwise KISS-ICP odometry.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -148,15 +148,11 @@ def session_lidar_map(data: SessionData) -> LidarMap | None:
 
 
 def consistency_frames(
-    data: SessionData,
-    lidar_map: LidarMap,
-    time_offset_s: float,
-    motion: tuple[np.ndarray, np.ndarray] | None = None,
+    data: SessionData, lidar_map: LidarMap, time_offset_s: float, indices: Sequence[int]
 ) -> list[ConsistencyFrame]:
-    """:data:`CONSISTENCY_FRAMES` :func:`calm_frames` within the map's trajectory, each with the
+    """The frames ``indices`` (:func:`calm_frames`) within the map's trajectory, each with the
     LiDAR's pose when it was taken (camera stamps moved onto the LiDAR clock by the offset) and
     the moving things measured then (:meth:`~calib.lidar_map.LidarMap.moving_near`)."""
-    indices = calm_frames(data, motion, CONSISTENCY_FRAMES)
     t_ns = np.round((frame_times(data)[indices] - time_offset_s) * 1e9).astype(np.int64)
     covered = lidar_map.trajectory.covers(t_ns)
     poses = lidar_map.trajectory.interpolate(t_ns[covered]) if covered.any() else np.zeros((0, 4, 4))
@@ -226,9 +222,10 @@ def session_extrinsic(
     lidar_map = lidar_map or session_lidar_map(data)
     if lidar_map is None:
         return refine_extrinsic(extrinsic_pairs(data, time_offset_s, motion), camera, T_init)
-    frames = consistency_frames(data, lidar_map, time_offset_s, motion)
+    indices = calm_frames(data, motion, CONSISTENCY_FRAMES)
+    frames = consistency_frames(data, lidar_map, time_offset_s, indices)
     result = photo_consistency_extrinsic(frames, camera, lidar_map, T_init)
-    frame_t = frame_times(data)[calm_frames(data, motion, CONSISTENCY_FRAMES)]  # as consistency_frames
+    frame_t = frame_times(data)[indices]
     if doubts := timing_reasons(frame_t, lidar_map.trajectory, motion, time_offset_s, offset_error_s):
         result.reasons += doubts
         result.verdict = "poorly constrained"

@@ -123,10 +123,12 @@ def test_lidar_map_follows_the_truth(room_session: Path, room_map) -> None:
 
 def test_too_few_frames_are_poorly_constrained(room_map) -> None:
     from calib.photo_consistency import MIN_FRAMES, photo_consistency_extrinsic
-    from calib.session_calib import consistency_frames
+    from calib.session_calib import CONSISTENCY_FRAMES, calm_frames, consistency_frames
 
     data, lidar_map = room_map
-    frames = consistency_frames(data, lidar_map, 0.0)[: MIN_FRAMES - 1]
+    frames = consistency_frames(data, lidar_map, 0.0, calm_frames(data, count=CONSISTENCY_FRAMES))[
+        : MIN_FRAMES - 1
+    ]
     T = np.eye(4)
     result = photo_consistency_extrinsic(frames, data.camera, lidar_map, T)
     assert result.verdict == "poorly constrained"
