@@ -132,6 +132,11 @@ class TrainConfig(BaseModel):
     max_triangles: int = Field(80_000, ge=1)
     lidar_noise_m: float = Field(0.015, gt=0, description="depth-error std treated as noise")
     normal_noise: float = Field(0.02, gt=0, description="std of 1 - n·n_prior treated as noise")
+    color_noise: float = Field(
+        0.03,
+        gt=0,
+        description="std of a pixel's colour error treated as noise where no LiDAR backs a triangle",
+    )
     prune_opacity: float = Field(0.05, ge=0, lt=1)
     final_prune_opacity: float = Field(
         0.2, ge=0, lt=1, description="before the opacity floor rises, triangles below this are removed"

@@ -7,6 +7,13 @@ rendered accumulated depth ``Σ w z``) and of the normal error σn² (``1 - n_pr
 the others are sampled with probability ∝ ``max(rd, rn)``. A sampled triangle's depth variance
 **dominates** when ``rd ≥ rn``: it is cloned (a depth discontinuity needs a second, free-moving
 triangle); otherwise it is subdivided at its edge midpoints into 4 (curvature needs smaller facets).
+
+Where no LiDAR return backs a triangle (camera-only geometry above the LiDAR's field: facades,
+crowns), neither variance exists and it would never grow finer than it started. There the variance
+of the colour error σc² (image minus render, over the static pixels it dominates with alpha ≥ 1/2)
+over its noise floor, ``rc = σc² / color_noise²``, takes their place: texture the triangle cannot
+show; such triangles are subdivided. The two kinds share each step's budget in proportion to how
+many of each are above their floor (:func:`shared_budget`).
 """
 
 from __future__ import annotations
@@ -44,6 +51,30 @@ def normal_error(out: RenderOutput, prior: Tensor) -> tuple[Tensor, Tensor]:
     return 1.0 - (prior * unit).sum(dim=-1), valid
 
 
+def color_error(out: RenderOutput, view: View) -> tuple[Tensor, Tensor]:
+    """Per-pixel mean over the channels of ``view.image - out.rgb`` ``(H, W)``, and where it counts
+    ``(H, W)`` bool: no LiDAR return, no moving object, and the triangles mostly opaque (alpha ≥ 1/2;
+    elsewhere the error is the background's)."""
+    error = (view.image - out.rgb.detach()).mean(dim=-1)
+    valid = out.alpha.detach() >= 0.5
+    if view.depth is not None:
+        valid &= ~(torch.isfinite(view.depth) & (view.depth > 0))
+    if view.moving_mask is not None:
+        valid &= ~view.moving_mask
+    return error, valid
+
+
+def shared_budget(geometric: Tensor, photometric: Tensor) -> Tensor:
+    """One sampling weight ``(F,)`` from two disjoint ones ``(F,)`` (0 = not a candidate), each
+    scaled to sum to its number of candidates: a draw then picks either kind about as often as it
+    has candidates. Unscaled, depth variances of thousands of times their floor at every LiDAR edge
+    would take every draw from colour variances of tens. Either alone is returned as it is."""
+    counts = [(w > 0).sum() for w in (geometric, photometric)]
+    if min(counts) == 0:
+        return geometric + photometric
+    return sum(w * (n / w.sum()) for w, n in zip((geometric, photometric), counts, strict=True))
+
+
 class VarianceStrategy(SamplingStrategy):
     """Samples triangles whose depth or normal error varies beyond sensor noise (module docstring)."""
 
@@ -51,45 +82,60 @@ class VarianceStrategy(SamplingStrategy):
         super().__init__(config, log)
         self.depth_error = DominantSums.zeros(0, torch.float32, torch.device("cpu"))
         self.normal_error = DominantSums.zeros(0, torch.float32, torch.device("cpu"))
+        self.color_error = DominantSums.zeros(0, torch.float32, torch.device("cpu"))
 
     def initialize(self, model: TriangleModel) -> None:
-        """Zero the seen-statistics and the depth and normal error sums ``(F,)``."""
+        """Zero the seen-statistics and the depth, normal and colour error sums ``(F,)``."""
         super().initialize(model)
         dtype, n = model.params["vertices"].dtype, model.n_triangles
         self.depth_error = DominantSums.zeros(n, dtype, model.device)
         self.normal_error = DominantSums.zeros(n, dtype, model.device)
+        self.color_error = DominantSums.zeros(n, dtype, model.device)
 
     def gather(self, model: TriangleModel, out: RenderOutput, view: View) -> None:
-        """Fold in ``out``'s blending weights and its depth/normal errors against ``view``'s LiDAR
-        depth and normal prior (where the view has them)."""
+        """Fold in ``out``'s blending weights, its depth/normal errors against ``view``'s LiDAR
+        depth and normal prior (where the view has them) and its colour error where the view has
+        no LiDAR return."""
         super().gather(model, out, view)
         if view.depth is not None:
             self.depth_error.add(out.dominant_sums(*depth_error(out, view.depth)))
         if view.normal is not None:
             self.normal_error.add(out.dominant_sums(*normal_error(out, view.normal)))
+        self.color_error.add(out.dominant_sums(*color_error(out, view)))
 
-    def _noise_ratios(self) -> tuple[Tensor, Tensor]:
-        """``rd``, ``rn`` ``(F,)``: error variances over their noise floors (0 below MIN_PIXELS)."""
-        rd = self.depth_error.variance() / self.config.lidar_noise_m**2
-        rn = self.normal_error.variance() / self.config.normal_noise**2
-        rd = torch.where(self.depth_error.count >= MIN_PIXELS, rd, 0.0)
-        rn = torch.where(self.normal_error.count >= MIN_PIXELS, rn, 0.0)
-        return rd, rn
+    def _noise_ratios(self) -> tuple[Tensor, Tensor, Tensor]:
+        """``rd``, ``rn``, ``rc`` ``(F,)``: error variances over their noise floors (0 below
+        MIN_PIXELS)."""
+        ratios = []
+        for sums, noise in ((self.depth_error, self.config.lidar_noise_m),
+                            (self.normal_error, self.config.normal_noise),
+                            (self.color_error, self.config.color_noise)):  # fmt: skip
+            ratios.append(torch.where(sums.count >= MIN_PIXELS, sums.variance() / noise**2, 0.0))
+        return ratios[0], ratios[1], ratios[2]
 
     def sampling_weights(self, model: TriangleModel) -> tuple[Tensor, Tensor]:
-        """``max(rd, rn)`` for seen triangles above the noise floor, else 0 ``(F,)``; clone where
-        ``rd ≥ rn`` ``(F,)`` bool."""
+        """``max(rd, rn)`` for seen triangles above the noise floor, ``rc`` for those that no LiDAR
+        return backs, else 0, shared as :func:`shared_budget` says ``(F,)``; clone where ``rd ≥ rn``
+        and LiDAR backs the triangle ``(F,)`` bool."""
         seen = self.max_weight.to(model.device) >= ALPHA_MIN
-        rd, rn = self._noise_ratios()
-        above_noise = (rd > 1) | (rn > 1)
-        return torch.where(above_noise & seen, torch.maximum(rd, rn), 0.0), rd >= rn
+        rd, rn, rc = self._noise_ratios()
+        backed = (self.depth_error.count >= MIN_PIXELS) | (self.normal_error.count >= MIN_PIXELS)
+        geometric = torch.where(((rd > 1) | (rn > 1)) & seen, torch.maximum(rd, rn), 0.0)
+        photometric = torch.where((rc > 1) & seen & ~backed, rc, 0.0)
+        return shared_budget(geometric, photometric), (rd >= rn) & backed
 
     def below_noise_floor(self, weights: Tensor) -> int:
         return int(((weights == 0) & (self.max_weight.to(weights.device) > 0)).sum())
 
     def state_dict(self) -> dict:
-        return {**super().state_dict(), "depth_error": self.depth_error, "normal_error": self.normal_error}
+        return {**super().state_dict(), "depth_error": self.depth_error, "normal_error": self.normal_error,
+                "color_error": self.color_error}  # fmt: skip
 
     def load_state_dict(self, state: dict) -> None:
         super().load_state_dict(state)
         self.depth_error, self.normal_error = state["depth_error"], state["normal_error"]
+        # a checkpoint of an earlier release has no colour sums: they start again from zero
+        zeros = DominantSums.zeros(
+            len(self.depth_error.count), self.depth_error.sum.dtype, self.depth_error.sum.device
+        )
+        self.color_error = state.get("color_error", zeros)

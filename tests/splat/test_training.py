@@ -17,7 +17,7 @@ from splat.model import TriangleModel, load_model
 from splat.param_rows import make_optimizer, replace_rows
 from splat.strategy import OpacityStrategy, VarianceStrategy
 from splat.strategy.growth import cloned_rows, subdivided_rows
-from splat.strategy.variance import depth_error
+from splat.strategy.variance import color_error, depth_error, shared_budget
 from splat.trainer import Trainer, TrainingDivergedError, train
 from splat.views import View, load_views
 
@@ -146,6 +146,51 @@ def test_variance_sampling_clones_depth_errors_and_subdivides_normal_errors():
     assert (report.cloned, report.subdivided) == (1, 1)
     assert model.n_triangles == 2 + 2 + 4
     assert strategy.max_weight.shape == (8,) and strategy.depth_error.count.shape == (8,)  # fresh statistics
+
+
+def test_colour_statistics_count_only_opaque_static_pixels_without_lidar():
+    model = _model(8, seed=2)
+    g = torch.Generator().manual_seed(5)
+    image = torch.rand(CAMERA.height, CAMERA.width, 3, generator=g)
+    depth = torch.where(torch.rand(CAMERA.height, CAMERA.width, generator=g) < 0.5, 4.0, 0.0)
+    moving = torch.zeros(CAMERA.height, CAMERA.width, dtype=torch.bool)
+    moving[:, : CAMERA.width // 4] = True
+    out = model.render(CAMERA, torch.eye(4))
+    view = View("v", torch.eye(4), image, depth=depth, normal=None, moving_mask=moving)
+    strategy = _variance_strategy(model)
+    strategy.gather(model, out, view)
+    counted = (depth == 0) & ~moving & (out.alpha.detach() >= 0.5)
+    assert torch.equal(color_error(out, view)[1], counted) and counted.any()
+    error = (image - out.rgb.detach()).mean(dim=-1).numpy()
+    dominant = out.dominant.numpy()
+    for face in range(model.n_triangles):
+        mask = (dominant == face) & counted.numpy()
+        assert int(strategy.color_error.count[face]) == mask.sum()
+        expected = np.var(error[mask]) if mask.any() else 0.0
+        assert float(strategy.color_error.variance()[face]) == pytest.approx(expected, rel=1e-3, abs=1e-6)
+
+
+def test_colour_variance_subdivides_only_triangles_no_lidar_return_backs():
+    model = _model(4)
+    strategy = _variance_strategy(model, growth_rate=2.0)
+    strategy.max_weight[:] = 1.0
+    strategy.depth_error.count[:2] = 100  # triangles 0, 1: LiDAR within noise
+    strategy.color_error.count[:] = 100
+    strategy.color_error.sum_sq[1:3] = 100 * 0.2**2  # texture on 1 (LiDAR-backed) and 2 (not)
+    weights, prefer_clone = strategy.sampling_weights(model)
+    assert weights.tolist() == [0.0, 0.0, pytest.approx(0.2**2 / 0.03**2), 0.0]
+    assert not prefer_clone[2]
+    report = strategy.densify(model, _optimizer(model), 20)
+    assert (report.cloned, report.subdivided) == (0, 1) and model.n_triangles == 3 + 4
+
+
+def test_lidar_and_colour_candidates_share_the_budget_by_their_numbers():
+    geometric = torch.tensor([4000.0, 2000.0, 6000.0, 0.0, 0.0])
+    photometric = torch.tensor([0.0, 0.0, 0.0, 5.0, 15.0])
+    shared = shared_budget(geometric, photometric)
+    assert shared.tolist() == pytest.approx([1.0, 0.5, 1.5, 0.5, 1.5])
+    assert torch.equal(shared_budget(geometric, torch.zeros(5)), geometric)  # one kind alone: as it is
+    assert torch.equal(shared_budget(torch.zeros(5), photometric), photometric)
 
 
 def test_a_strategy_densifies_on_schedule_and_moves_adam_state_with_the_rows():
