@@ -34,11 +34,15 @@ from splat.views import View
 MIN_PIXELS = 4
 
 
+def lidar_returns(lidar_depth: Tensor) -> Tensor:
+    """``(H, W)`` bool: the pixels of ``lidar_depth`` ``(H, W)`` with a finite LiDAR return > 0."""
+    return torch.isfinite(lidar_depth) & (lidar_depth > 0)
+
+
 def depth_error(out: RenderOutput, lidar_depth: Tensor) -> tuple[Tensor, Tensor]:
     """Per-pixel ``lidar_depth - accumulated depth`` ``(H, W)`` and where it counts ``(H, W)`` bool
-    (a finite LiDAR return > 0)."""
-    valid = torch.isfinite(lidar_depth) & (lidar_depth > 0)
-    return lidar_depth - out.accumulated_depth.detach(), valid
+    (:func:`lidar_returns`)."""
+    return lidar_depth - out.accumulated_depth.detach(), lidar_returns(lidar_depth)
 
 
 def normal_error(out: RenderOutput, prior: Tensor) -> tuple[Tensor, Tensor]:
@@ -58,7 +62,7 @@ def color_error(out: RenderOutput, view: View) -> tuple[Tensor, Tensor]:
     error = (view.image - out.rgb.detach()).mean(dim=-1)
     valid = out.alpha.detach() >= 0.5
     if view.depth is not None:
-        valid &= ~(torch.isfinite(view.depth) & (view.depth > 0))
+        valid &= ~lidar_returns(view.depth)
     if view.moving_mask is not None:
         valid &= ~view.moving_mask
     return error, valid
