@@ -60,6 +60,12 @@ class TrainConfig(BaseModel):
         description="upright surfaces at the topmost LiDAR returns continued up to the image top as "
         "camera-only cells (facades and poles above the LiDAR's field; splat.upward_extension)",
     )
+    plane_sweep: bool = Field(
+        True,
+        description="camera-only cells where plane-sweep stereo between keyframes finds a surface above "
+        "the LiDAR's reach that the upward extension does not cover (an overpass, tree crowns; "
+        "splat.plane_sweep)",
+    )
     lidar_init_points: int = Field(2_000, ge=4, description="as many as the SfM points TS+ starts from")
 
     # Loss weights (Eq. 3): (1-λ) L1 + λ D-SSIM + β1 opacity + β2 normal + β3 depth + β4 distortion.

@@ -21,6 +21,7 @@ from splat.lidar_fill import lidar_fill
 from splat.lidar_points import keyframe_lidar_points, lidar_points
 from splat.lidar_snap import snap_to_lidar
 from splat.model import TriangleModel
+from splat.plane_sweep import swept_cells
 from splat.upward_extension import upward_extension
 from splat.views import View
 
@@ -83,6 +84,17 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         notes.append(extension.reason)
         triangles = np.concatenate([triangles, _scaled(extension.triangles, config.init_scale)])
     colors = None if config.init_color == "project" else np.full_like(triangles, GREY)
+    if config.plane_sweep:
+        # Cells the extension made already explain what they cover.
+        known = (
+            np.concatenate([lidar, extension.triangles.mean(axis=1)]) if config.upward_extension else lidar
+        )
+        images = [scene.image(k) for k in train]
+        cells = swept_cells(scene.camera, images, poses, [scene.depth(k) for k in train],
+                            [scene.moving_mask(k) for k in train], known)  # fmt: skip
+        notes.append(cells.reason)
+        triangles = np.concatenate([triangles, _scaled(cells.triangles, config.init_scale)])
+        colors = None if colors is None else np.concatenate([colors, cells.colors])
     if config.camera_only_seeds and scene.sparse_points_path is None:
         notes.append("no camera-only triangles: the scene has no sparse points (lts prepare --sparse-points)")
     elif config.camera_only_seeds:
