@@ -21,7 +21,7 @@ from splat.lidar_fill import lidar_fill
 from splat.lidar_points import keyframe_lidar_points, lidar_points
 from splat.lidar_snap import snap_to_lidar
 from splat.model import TriangleModel
-from splat.plane_sweep import swept_cells
+from splat.plane_sweep import keyframe_sweeps, swept_cells
 from splat.upward_extension import upward_extension
 from splat.views import View
 
@@ -79,19 +79,23 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         # train, so they keep their size (scaled, they would reach past the walls).
         triangles = np.concatenate([triangles, _scaled(fill.triangles, config.init_scale), fill.hidden])
         up = up if fill.plane is None else fill.plane[:3]
+    depths = [scene.depth(k) for k in train]
+    sweeps = None
+    if config.plane_sweep:
+        images = [scene.image(k) for k in train]
+        sweeps = keyframe_sweeps(scene.camera, images, poses, depths, [scene.moving_mask(k) for k in train])
     if config.upward_extension:
-        extension = upward_extension(scene.camera, poses, [scene.lidar(k) for k in train], up, mesh)
+        lidars = [scene.lidar(k) for k in train]
+        extension = upward_extension(scene.camera, poses, lidars, up, mesh, sweeps)
         notes.append(extension.reason)
         triangles = np.concatenate([triangles, _scaled(extension.triangles, config.init_scale)])
     colors = None if config.init_color == "project" else np.full_like(triangles, GREY)
-    if config.plane_sweep:
+    if sweeps is not None:
         # Cells the extension made already explain what they cover.
         known = (
             np.concatenate([lidar, extension.triangles.mean(axis=1)]) if config.upward_extension else lidar
         )
-        images = [scene.image(k) for k in train]
-        cells = swept_cells(scene.camera, images, poses, [scene.depth(k) for k in train],
-                            [scene.moving_mask(k) for k in train], known)  # fmt: skip
+        cells = swept_cells(scene.camera, images, poses, depths, sweeps, known)
         notes.append(cells.reason)
         triangles = np.concatenate([triangles, _scaled(cells.triangles, config.init_scale)])
         colors = None if colors is None else np.concatenate([colors, cells.colors])
@@ -99,7 +103,6 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         notes.append("no camera-only triangles: the scene has no sparse points (lts prepare --sparse-points)")
     elif config.camera_only_seeds:
         points, point_colors = scene.sparse_points()
-        depths = [scene.depth(k) for k in train]
         seeds = camera_only_seeds(points, point_colors, lidar, scene.camera, poses, depths)
         notes.append(seeds.reason)
         triangles = np.concatenate([triangles, seeds.triangles])

@@ -167,7 +167,9 @@ def _cell_quads(
     camera: CameraModel, T_world_cam: np.ndarray, pixels: np.ndarray, depth: np.ndarray
 ) -> np.ndarray:
     """World squares ``(N, 4, 3)`` facing the camera at ``T_world_cam`` ``(4, 4)``: each covers the
-    :data:`CELL_PX` × :data:`CELL_PX` pixels around ``pixels`` ``(N, 2)`` (u, v) at ``depth`` ``(N,)``."""
+    :data:`CELL_PX` × :data:`CELL_PX` pixels around ``pixels`` ``(N, 2)`` (u, v) at ``depth`` ``(N,)``.
+    (Tilted into the plane of their neighbours, the cells on the street's facades lie no closer to the
+    truth: their depth's error dominates.)"""
     half = CELL_PX / 2
     corners = np.array([[-half, -half], [half, -half], [half, half], [-half, half]])
     uv = pixels[:, None, :] + corners[None]
@@ -176,41 +178,64 @@ def _cell_quads(
     return points @ T_world_cam[:3, :3].T + T_world_cam[:3, 3]
 
 
-def swept_cells(
+def keyframe_sweeps(
     camera: CameraModel,
     images: list[np.ndarray],
     poses_world_cam: np.ndarray,
     depths: list[np.ndarray],
     moving: list[np.ndarray | None],
-    known: np.ndarray,
-) -> SweptCells:
-    """Camera-only cells where plane-sweep stereo between keyframes (RGB ``images`` ``(H, W, 3)``
-    uint8 at ``poses_world_cam`` ``(K, 4, 4)``, LiDAR depth images ``depths`` ``(H, W)``, 0 = no
-    return, masks of moving pixels ``moving``) finds a surface above the LiDAR's reach that
-    another keyframe agrees with, that none of the ``known`` points ``(M, 3)`` (LiDAR returns, cells
-    already made) explains (:func:`splat.camera_only.unexplained_points`) and that the LiDAR does
-    not see through. ``camera`` must be an undistorted pinhole (a scene's camera is)."""
-    empty = SweptCells(np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), 0, 0)
+) -> list[np.ndarray | None]:
+    """Each keyframe's :func:`sweep_depth` ``(H, W)`` (m; NaN where not confident, below the LiDAR's
+    reach and on moving pixels), or None where there is nothing above the LiDAR's reach or no
+    other keyframe :data:`MIN_BASELINE_M` away: keyframes with RGB ``images`` ``(H, W, 3)`` uint8 at
+    ``poses_world_cam`` ``(K, 4, 4)``, LiDAR depth images ``depths`` ``(H, W)`` (0 = no return)
+    and masks of moving pixels ``moving``. ``camera`` must be an undistorted pinhole (a scene's
+    camera is); for any other, every entry is None."""
     if camera.model != "pinhole" or np.any(camera.dist):
-        return empty
+        return [None] * len(images)
     greys = [_grey(image) for image in images]
     centres = poses_world_cam[:, :3, 3]
-    points, quads, colors, owner = [], [], [], []
-    n_references = 0
+    sweeps: list[np.ndarray | None] = []
     for reference, (T_world_cam, depth) in enumerate(zip(poses_world_cam, depths, strict=True)):
         above = above_lidar(torch.as_tensor(depth)).numpy()
         if moving[reference] is not None:
             above &= ~moving[reference]
         sources = _sources(centres, reference)
         if not above.any() or not sources:
+            sweeps.append(None)
             continue
         rows = int(np.flatnonzero(above.any(axis=1)).max()) + 1
         others = [(greys[i], poses_world_cam[i]) for i in sources]
-        swept = sweep_depth(camera, (greys[reference], T_world_cam), others, rows)
+        swept = np.full(depth.shape, np.nan, dtype=np.float32)
+        swept[:rows] = sweep_depth(camera, (greys[reference], T_world_cam), others, rows)
+        sweeps.append(np.where(above, swept, np.nan))
+    return sweeps
+
+
+def swept_cells(
+    camera: CameraModel,
+    images: list[np.ndarray],
+    poses_world_cam: np.ndarray,
+    depths: list[np.ndarray],
+    sweeps: list[np.ndarray | None],
+    known: np.ndarray,
+) -> SweptCells:
+    """Camera-only cells where the keyframes' :func:`keyframe_sweeps` ``sweeps`` (RGB ``images``
+    ``(H, W, 3)`` uint8 at ``poses_world_cam`` ``(K, 4, 4)``, LiDAR depth images ``depths``
+    ``(H, W)``, 0 = no return) found a surface that another keyframe agrees with, that none of the
+    ``known`` points ``(M, 3)`` (LiDAR returns, cells already made) explains
+    (:func:`splat.camera_only.unexplained_points`) and that the LiDAR does not see through."""
+    empty = SweptCells(np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), 0, 0)
+    centres = poses_world_cam[:, :3, 3]
+    points, quads, colors, owner = [], [], [], []
+    n_references = 0
+    for reference, (T_world_cam, swept) in enumerate(zip(poses_world_cam, sweeps, strict=True)):
+        if swept is None:
+            continue
         n_references += 1
-        v, u = np.mgrid[CELL_PX // 2 : rows : CELL_PX, CELL_PX // 2 : camera.width : CELL_PX]
+        v, u = np.mgrid[CELL_PX // 2 : camera.height : CELL_PX, CELL_PX // 2 : camera.width : CELL_PX]
         z = swept[v, u]
-        keep = above[v, u] & np.isfinite(z)
+        keep = np.isfinite(z)
         if not keep.any():
             continue
         pixels = np.stack([u[keep], v[keep]], axis=1).astype(np.float64)

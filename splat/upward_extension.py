@@ -26,6 +26,7 @@ from rig.camera import CameraModel
 from rig.mesh_rays import cast_world_rays, mesh_raycaster
 from slam_bridge.scene import KeyframeLidar
 from splat.camera_only import seen_through
+from splat.plane_sweep import AGREE_FRACTION
 
 #: Image columns are grouped this many pixels wide; each group's topmost return starts one strip,
 #: whose cells are as wide as the group at the return's depth.
@@ -133,22 +134,51 @@ def _strip_cells(
     return np.stack([base - half, base + half, base + half + size * up, base - half + size * up], axis=1)
 
 
+def confirmed_cells(cells_cam: np.ndarray, sweep: np.ndarray, camera: CameraModel) -> int:
+    """How many of a strip's cells, centres ``(C, 3)`` in the camera frame from the bottom up, to
+    keep, by the keyframe's swept depth ``sweep`` ``(H, W)`` (NaN: none) in each cell's
+    :data:`COLUMN_PX`-wide patch: a cell is confirmed where a depth lies within
+    :data:`splat.plane_sweep.AGREE_FRACTION` of its own, contradicted where the patch holds depths and
+    all lie beyond it (a building behind shows there). The strip ends one cell above the highest
+    confirmed cell, or at the first contradicted cell above it, whichever is lower; a wall too plain
+    to match says nothing about where it ends."""
+    z = cells_cam[:, 2]
+    u = np.rint(camera.fx * cells_cam[:, 0] / z + camera.cx).astype(np.int64)
+    v = np.rint(camera.fy * cells_cam[:, 1] / z + camera.cy).astype(np.int64)
+    half = COLUMN_PX // 2
+    confirmed, contradicted = np.zeros(len(z), dtype=bool), np.zeros(len(z), dtype=bool)
+    for index in range(len(z)):
+        rows = slice(max(v[index] - half, 0), max(v[index] + half, 0))
+        patch = sweep[rows, max(u[index] - half, 0) : max(u[index] + half, 0)]
+        patch = patch[np.isfinite(patch)] / z[index] - 1
+        confirmed[index] = np.any(np.abs(patch) < AGREE_FRACTION)
+        contradicted[index] = len(patch) > 0 and bool(np.all(patch >= AGREE_FRACTION))
+    highest = int(np.flatnonzero(confirmed).max()) if confirmed.any() else -1
+    end = len(z) if highest < 0 else min(highest + 2, len(z))
+    above = np.flatnonzero(contradicted[highest + 1 :])
+    return min(end, highest + 1 + int(above[0])) if len(above) else end
+
+
 def upward_extension(
     camera: CameraModel,
     poses_world_cam: np.ndarray,
     lidars: list[KeyframeLidar],
     up: np.ndarray,
     warm_start: trimesh.Trimesh,
+    sweeps: list[np.ndarray | None] | None = None,
 ) -> UpwardExtension:
     """Strips of cells continuing the upright surfaces at the topmost LiDAR returns of keyframes
     (``camera`` at ``poses_world_cam`` ``(K, 4, 4)`` with their LiDAR returns ``lidars``) straight
     up along world ``up`` ``(3,)`` to the top of each image. One cell of each world grid square (of
     the median cell's side) is kept where keyframes overlap; cells the ``warm_start`` mesh hides
     from the keyframe that made them (a wall continued past a ceiling) and cells the keyframes'
-    LiDAR sees through are dropped. Returns two triangles a cell."""
+    LiDAR sees through are dropped. With the keyframes' swept depths ``sweeps``
+    (:func:`splat.plane_sweep.keyframe_sweeps`), a strip ends one cell above the highest cell its
+    keyframe's images confirm (:func:`confirmed_cells`): where a wall ends below the sky or a
+    farther building, the cells above no longer match. Returns two triangles a cell."""
     raycaster = mesh_raycaster(warm_start)
     cells, sizes, n_strips = [], [], 0
-    for T_world_cam, lidar in zip(poses_world_cam, lidars, strict=True):
+    for index, (T_world_cam, lidar) in enumerate(zip(poses_world_cam, lidars, strict=True)):
         up_cam = T_world_cam[:3, :3].T @ up
         points, along = topmost_upright_returns(lidar, camera, up_cam)
         if not len(points):
@@ -159,6 +189,9 @@ def upward_extension(
         for point, direction, rise, z in zip(world, along_world, rises, points[:, 2], strict=True):
             size = COLUMN_PX * z / camera.fx
             strip = _strip_cells(point, direction, up, size, rise)
+            if sweeps is not None and sweeps[index] is not None:
+                centres_cam = (strip.mean(axis=1) - T_world_cam[:3, 3]) @ T_world_cam[:3, :3]
+                strip = strip[: confirmed_cells(centres_cam, sweeps[index], camera)]
             strip = strip[_in_sight(raycaster, T_world_cam[:3, 3], strip.mean(axis=1), size)]
             cells.append(strip)
             sizes.append(np.full(len(strip), size))

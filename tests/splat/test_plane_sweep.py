@@ -12,6 +12,7 @@ from splat.plane_sweep import (
     SWEEP_NEAR_M,
     SWEEP_PLANES,
     _grey,
+    keyframe_sweeps,
     sweep_depth,
     swept_cells,
 )
@@ -73,7 +74,8 @@ def test_cells_lie_on_the_wall_and_none_where_the_lidar_explains_it_or_a_pixel_m
     poses = np.stack([_pose(c) for c in centres])
     no_returns = [np.zeros((CAMERA.height, CAMERA.width), np.float32)] * len(centres)  # all above the LiDAR
 
-    cells = swept_cells(CAMERA, images, poses, no_returns, [None] * len(centres), np.zeros((0, 3)))
+    sweeps = keyframe_sweeps(CAMERA, images, poses, no_returns, [None] * len(centres))
+    cells = swept_cells(CAMERA, images, poses, no_returns, sweeps, np.zeros((0, 3)))
     assert cells.n_references == len(centres)
     assert len(cells.triangles) > 100
     assert np.allclose(cells.triangles[..., 2], WALL_Z, rtol=0.05)
@@ -85,8 +87,8 @@ def test_cells_lie_on_the_wall_and_none_where_the_lidar_explains_it_or_a_pixel_m
     wall = np.stack(np.meshgrid(np.linspace(-8, 8, 161), np.linspace(-5, 5, 101), [WALL_Z]), -1).reshape(
         -1, 3
     )
-    assert len(swept_cells(CAMERA, images, poses, no_returns, [None] * 5, wall).triangles) == 0
+    assert len(swept_cells(CAMERA, images, poses, no_returns, sweeps, wall).triangles) == 0
     everything = np.ones((CAMERA.height, CAMERA.width), bool)
-    assert (
-        len(swept_cells(CAMERA, images, poses, no_returns, [everything] * 5, np.zeros((0, 3))).triangles) == 0
-    )
+    masked = keyframe_sweeps(CAMERA, images, poses, no_returns, [everything] * len(centres))
+    assert masked == [None] * len(centres)
+    assert len(swept_cells(CAMERA, images, poses, no_returns, masked, np.zeros((0, 3))).triangles) == 0

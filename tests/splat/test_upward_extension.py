@@ -82,3 +82,23 @@ def test_a_wall_is_not_continued_past_the_ceiling_that_hides_it():
     ceiling = trimesh.Trimesh([[0, -20, 3], [12, -20, 3], [12, 20, 3], [0, 20, 3]], [[0, 1, 2], [0, 2, 3]])
     corners = upward_extension(CAMERA, POSE[None], [lidar], UP, ceiling).triangles.reshape(-1, 3)
     assert len(corners) and corners[:, 2].max() < 3.0 + 10.0 * COLUMN_PX / 40.0
+
+
+def test_a_strip_ends_a_cell_above_what_the_images_confirm_and_runs_on_where_they_say_nothing():
+    lidar = _wall_returns(10.0, range(30, 48))
+    matched = np.full((CAMERA.height, CAMERA.width), np.nan, dtype=np.float32)
+    matched[28:30] = 10.0  # the images match the wall just above the LiDAR; sky above
+    cut = upward_extension(CAMERA, POSE[None], [lidar], UP, NO_MESH, [matched]).triangles.reshape(-1, 3)
+    top_of_image = 1.6 + 10.0 * 23.5 / 40.0
+    highest_match = 1.6 + 10.0 * (23.5 - 28) / 40.0
+    assert len(cut) and highest_match < cut[:, 2].max() <= highest_match + 2 * 10.0 * COLUMN_PX / 40.0
+    assert cut[:, 2].max() < top_of_image
+
+    farther = np.where(np.isfinite(matched), 30.0, np.nan).astype(np.float32)  # a building behind
+    behind = upward_extension(CAMERA, POSE[None], [lidar], UP, NO_MESH, [farther]).triangles.reshape(-1, 3)
+    assert len(behind) and behind[:, 2].max() < highest_match  # only the cell below the LiDAR's top
+
+    plain = np.full_like(matched, np.nan)  # a wall too plain to match
+    unswept = upward_extension(CAMERA, POSE[None], [lidar], UP, NO_MESH, [None]).triangles
+    runs_on = upward_extension(CAMERA, POSE[None], [lidar], UP, NO_MESH, [plain]).triangles
+    assert np.array_equal(runs_on, unswept) and runs_on.reshape(-1, 3)[:, 2].max() >= top_of_image
