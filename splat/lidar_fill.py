@@ -7,6 +7,8 @@ budget opens more. On the virtual street a third of the training keyframes' retu
 10 cm from the warm start, and those pixels rendered black. Each voxel of such returns that
 enough keyframes hold gets one triangle in the plane of its neighbouring returns (open3d's
 normals), as large as the gaps to its neighbours; training then treats it like a warm-start face.
+Far away the voxels grow with the range: the returns of successive sweeps spread apart there, and
+at one fixed size too few keyframes shared a voxel to fill the far road ahead.
 
 The keyframe count keeps vehicles out: a car the moving-point detection missed (one driving
 ahead at the robot's speed is seldom seen through) leaves its returns at a new place in every
@@ -35,6 +37,10 @@ EXPLAINED_FRACTION = 0.02
 #: MIN_KEYFRAMES keyframes hold one in the voxel (neighbouring keyframes share a sweep).
 VOXEL_M = 0.25
 MIN_KEYFRAMES = 3
+#: Beyond VOXEL_M / VOXEL_FRACTION metres from the nearest camera the voxel grows with the range,
+#: in steps of 2 (a spinning LiDAR's rings and returns spread apart with it): at most MAX_LEVELS.
+VOXEL_FRACTION = 0.01
+MAX_LEVELS = 2
 #: Returns whose plane is estimated from this many neighbours within this many voxels.
 NORMAL_NEIGHBOURS = 16
 NORMAL_RADIUS_VOXELS = 4.0
@@ -60,7 +66,8 @@ class LidarFill:
         share = self.n_unexplained / max(self.n_returns, 1)
         return (
             f"{len(self.triangles)} triangles fill the LiDAR returns the warm start misses "
-            f"({100 * share:.1f} % of {self.n_returns}, in {self.n_voxels} voxels of {VOXEL_M:g} m; "
+            f"({100 * share:.1f} % of {self.n_returns}, in {self.n_voxels} voxels of {VOXEL_M:g}–"
+            f"{VOXEL_M * 2**MAX_LEVELS:g} m by range; "
             f"{self.n_voxels - len(self.triangles)} held by fewer than {MIN_KEYFRAMES} keyframes left out)"
         )
 
@@ -78,11 +85,26 @@ def unexplained_returns(mesh: trimesh.Trimesh, points: np.ndarray, camera_centre
     return distance > explained_radius(points, camera_centres, EXPLAINED_MIN_M, EXPLAINED_FRACTION)
 
 
-def _held_voxels(points: np.ndarray, keyframe: np.ndarray) -> tuple[np.ndarray, int]:
-    """One point ``(V, 3)`` per :data:`VOXEL_M` voxel of ``points`` ``(N, 3)`` (the mean of the voxel's
-    points) that at least :data:`MIN_KEYFRAMES` distinct ``keyframe`` ids ``(N,)`` hold, and the
-    number of voxels ``points`` occupy."""
-    keys = np.floor(points / VOXEL_M).astype(np.int64)
+def voxel_levels(points: np.ndarray, camera_centres: np.ndarray) -> np.ndarray:
+    """``(N,)`` int: each point's voxel level (side ``VOXEL_M · 2**level``) by its range from the
+    nearest of ``camera_centres`` ``(K, 3)``: the level whose side is nearest below
+    :data:`VOXEL_FRACTION` of it, within [0, :data:`MAX_LEVELS`]."""
+    if len(points) == 0:
+        return np.zeros(0, dtype=np.int64)
+    distance = cKDTree(camera_centres).query(points)[0]
+    ratio = np.maximum(VOXEL_FRACTION * distance / VOXEL_M, 1.0)
+    return np.clip(np.floor(np.log2(ratio)), 0, MAX_LEVELS).astype(np.int64)
+
+
+def _held_voxels(
+    points: np.ndarray, keyframe: np.ndarray, level: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """One point ``(V, 3)`` per voxel of ``points`` ``(N, 3)`` (the mean of the voxel's points; side
+    ``VOXEL_M · 2**level`` by each point's ``level`` ``(N,)``) that at least
+    :data:`MIN_KEYFRAMES` distinct ``keyframe`` ids ``(N,)`` hold, the sides of those voxels ``(V,)``,
+    and the number of voxels ``points`` occupy."""
+    side = VOXEL_M * 2.0**level
+    keys = np.column_stack([np.floor(points / side[:, None]).astype(np.int64), level])
     _, voxel, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
     voxel = voxel.ravel()
     pairs = np.unique(np.column_stack([voxel, keyframe]), axis=0)
@@ -90,13 +112,15 @@ def _held_voxels(points: np.ndarray, keyframe: np.ndarray) -> tuple[np.ndarray, 
     sums = np.stack(
         [np.bincount(voxel, weights=points[:, i], minlength=len(count)) for i in range(3)], axis=1
     )
-    return (sums / count[:, None])[held], len(count)
+    voxel_side = np.bincount(voxel, weights=side, minlength=len(count)) / count
+    return (sums / count[:, None])[held], voxel_side[held], len(count)
 
 
 def lidar_fill(
     mesh: trimesh.Trimesh, keyframe_points: list[np.ndarray], camera_centres: np.ndarray
 ) -> LidarFill:
-    """One triangle per :data:`VOXEL_M` voxel of the keyframes' LiDAR returns ``keyframe_points``
+    """One triangle per voxel (:data:`VOXEL_M`, larger at range: :func:`voxel_levels`) of the
+    keyframes' LiDAR returns ``keyframe_points``
     (world ``(N_k, 3)`` each) that ``mesh`` does not explain (:func:`unexplained_returns`; cameras at
     ``camera_centres`` ``(K, 3)``) and that :data:`MIN_KEYFRAMES` keyframes hold, in the plane of
     the neighbouring voxels, its circumradius :data:`SIZE_FACTOR` times the mean gap to its
@@ -104,13 +128,16 @@ def lidar_fill(
     points = np.concatenate(keyframe_points) if keyframe_points else np.zeros((0, 3))
     keyframe = np.repeat(np.arange(len(keyframe_points)), [len(p) for p in keyframe_points])
     unexplained = unexplained_returns(mesh, points, camera_centres)
-    centres, n_voxels = _held_voxels(points[unexplained], keyframe[unexplained])
+    level = voxel_levels(points[unexplained], camera_centres)
+    centres, side, n_voxels = _held_voxels(points[unexplained], keyframe[unexplained], level)
     if len(centres) < SIZE_NEIGHBOURS + 1:
         return LidarFill(np.zeros((0, 3, 3)), int(unexplained.sum()), len(points), n_voxels)
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(centres))
-    radius = NORMAL_RADIUS_VOXELS * VOXEL_M
-    cloud.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=NORMAL_NEIGHBOURS))
-    normals = np.asarray(cloud.normals)
+    normals = np.zeros_like(centres)
+    for voxel in np.unique(side):  # each level's normals from neighbours as far apart as its voxels
+        radius = NORMAL_RADIUS_VOXELS * voxel
+        cloud.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=NORMAL_NEIGHBOURS))
+        normals[side == voxel] = np.asarray(cloud.normals)[side == voxel]
     gaps = cKDTree(centres).query(centres, k=SIZE_NEIGHBOURS + 1)[0][:, 1:].mean(axis=1)
-    radii = np.clip(SIZE_FACTOR * gaps, VOXEL_M, 3 * VOXEL_M)
+    radii = np.clip(SIZE_FACTOR * gaps, side, 3 * side)
     return LidarFill(facing_triangles(centres, normals, radii), int(unexplained.sum()), len(points), n_voxels)

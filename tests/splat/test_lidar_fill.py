@@ -1,7 +1,14 @@
 import numpy as np
 import trimesh
 
-from splat.lidar_fill import EXPLAINED_MIN_M, MIN_KEYFRAMES, VOXEL_M, lidar_fill, unexplained_returns
+from splat.lidar_fill import (
+    EXPLAINED_MIN_M,
+    MIN_KEYFRAMES,
+    VOXEL_M,
+    lidar_fill,
+    unexplained_returns,
+    voxel_levels,
+)
 
 CAMERAS = np.array([[0.0, 0.0, 1.6]])
 
@@ -62,3 +69,23 @@ def test_returns_too_few_keyframes_hold_are_not_filled():
     fill = lidar_fill(_road_mesh(), keyframes, CAMERAS)
     assert fill.n_unexplained == len(wall) and fill.n_voxels > 0
     assert len(fill.triangles) == 0
+
+
+def test_far_returns_fill_voxels_as_large_as_their_spread():
+    """A far wall's returns land in different small voxels in each sweep; grown with the range, the
+    voxels gather them from enough keyframes, and the triangles grow with them."""
+    rng = np.random.default_rng(1)
+    far = 60.0  # a voxel of VOXEL_M * 2 here: VOXEL_FRACTION * 60 m = 0.6 m
+    assert voxel_levels(np.array([[far, 0.0, 1.6], [5.0, 0.0, 1.6]]), CAMERAS).tolist() == [1, 0]
+    # Each keyframe holds one return per 0.5 m voxel of a 6 x 4 m wall, at its own place within it.
+    y, z = np.meshgrid(np.arange(-3, 3, 0.5) + 0.25, np.arange(0, 4, 0.5) + 0.25)
+    keyframes = [
+        np.column_stack([np.full(y.size, far), y.ravel(), z.ravel()])
+        + np.column_stack([np.zeros(y.size), rng.uniform(-0.2, 0.2, (y.size, 2))])
+        for _ in range(MIN_KEYFRAMES)
+    ]
+    fill = lidar_fill(_road_mesh(), keyframes, CAMERAS)
+    assert 0.5 * 24 / (2 * VOXEL_M) ** 2 <= len(fill.triangles) <= 24 / (2 * VOXEL_M) ** 2
+    np.testing.assert_allclose(fill.triangles.reshape(-1, 3)[:, 0], far, atol=0.05)  # in the wall's plane
+    radius = np.linalg.norm(fill.triangles[:, 0] - fill.triangles.mean(axis=1), axis=1)
+    assert radius.min() >= 2 * VOXEL_M - 1e-9
