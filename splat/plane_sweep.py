@@ -8,8 +8,8 @@ keyframe's pixels above its topmost LiDAR returns get a depth by sweeping fronto
 (uniform in inverse depth) and scoring each against the nearest keyframes before and after it
 (far enough apart to see parallax) by zero-mean normalised cross-correlation over a window:
 insensitive to the images' gains. A depth is kept only where the window has texture, the
-correlation is high, the minimum is clearly unique along the sweep and inside it (sky, far
-structure beyond the sweep and pixels near the epipole of a forward drive have no such minimum),
+correlation is high, its peak is clearly unique along the sweep and inside it (sky, far
+structure beyond the sweep and pixels near the epipole of a forward drive have no such peak),
 and another reference keyframe finds the same surface. Each kept pixel of a coarse grid becomes a
 square cell facing its keyframe, as wide as the grid step there; cells the LiDAR explains or sees
 through are dropped, as are cells on pixels of moving objects.
@@ -71,7 +71,8 @@ class SweptCells:
             )
         return (
             f"{len(self.triangles) // 2} camera-only cells from plane-sweep stereo above the LiDAR's reach "
-            f"({self.n_matched} confident depths on a {CELL_PX}-pixel grid of {self.n_references} keyframes, "
+            f"({self.n_matched} confident depths, one per {CELL_PX} x {CELL_PX} pixels, in "
+            f"{self.n_references} keyframes; "
             "kept where another keyframe agrees and no LiDAR return explains or sees through them)"
         )
 
