@@ -137,6 +137,19 @@ def facing_triangles(points: np.ndarray, normals: np.ndarray, radii: np.ndarray)
     return points[:, None, :] + radii[:, None, None] * offsets
 
 
+def one_per_grid_square(centres: np.ndarray, cell_m: float) -> np.ndarray:
+    """Sorted indices ``(M,)`` of one of ``centres`` ``(N, 3)`` per cube of side ``cell_m`` of a world
+    grid (the first of each): where cells made from several keyframes overlap, one is kept."""
+    _, first = np.unique(np.floor(centres / cell_m).astype(np.int64), axis=0, return_index=True)
+    return np.sort(first)
+
+
+def quad_triangles(quads: np.ndarray) -> np.ndarray:
+    """The two triangles ``(2N, 3, 3)`` of each quadrilateral ``(N, 4, 3)`` (corners in order): all
+    first halves, then all second halves."""
+    return np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+
+
 def camera_only_seeds(
     points: np.ndarray,
     colors: np.ndarray,

@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 
 from rig.camera import CameraModel
 from splat.background_mask import above_lidar
-from splat.camera_only import seen_through, unexplained_points
+from splat.camera_only import one_per_grid_square, quad_triangles, seen_through, unexplained_points
 
 #: Depth hypotheses of the sweep, uniform in inverse depth between these (m).
 SWEEP_PLANES = 96
@@ -173,9 +173,8 @@ def _cell_quads(
     truth: their depth's error dominates.)"""
     half = CELL_PX / 2
     corners = np.array([[-half, -half], [half, -half], [half, half], [-half, half]])
-    uv = pixels[:, None, :] + corners[None]
-    homogeneous = np.concatenate([uv, np.ones((*uv.shape[:2], 1))], axis=2)
-    points = homogeneous @ np.linalg.inv(camera.K).T * depth[:, None, None]
+    uv = (pixels[:, None, :] + corners[None]).reshape(-1, 2)
+    points = camera.unproject(uv, np.repeat(depth, len(corners))).reshape(len(pixels), len(corners), 3)
     return points @ T_world_cam[:3, :3].T + T_world_cam[:3, 3]
 
 
@@ -258,9 +257,7 @@ def swept_cells(
     points, quads, colors = points[keep], quads[keep], colors[keep]
     if len(points):
         side = np.linalg.norm(quads[:, 1] - quads[:, 0], axis=1)
-        _, first = np.unique(np.floor(points / np.median(side)).astype(np.int64), axis=0, return_index=True)
-        first = np.sort(first)
+        first = one_per_grid_square(points, float(np.median(side)))
         quads, colors = quads[first], colors[first]
-    triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     rgb = np.repeat(np.concatenate([colors, colors])[:, None, :], 3, axis=1)
-    return SweptCells(triangles, rgb, n_matched, n_references)
+    return SweptCells(quad_triangles(quads), rgb, n_matched, n_references)

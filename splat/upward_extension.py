@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 from rig.camera import CameraModel
 from rig.mesh_rays import cast_world_rays, mesh_raycaster
 from slam_bridge.scene import KeyframeLidar
-from splat.camera_only import seen_through
+from splat.camera_only import one_per_grid_square, quad_triangles, seen_through
 from splat.plane_sweep import AGREE_FRACTION
 
 #: Image columns are grouped this many pixels wide; each group's topmost return starts one strip,
@@ -143,8 +143,7 @@ def confirmed_cells(cells_cam: np.ndarray, sweep: np.ndarray, camera: CameraMode
     confirmed cell, or at the first contradicted cell above it, whichever is lower; a wall too plain
     to match says nothing about where it ends."""
     z = cells_cam[:, 2]
-    u = np.rint(camera.fx * cells_cam[:, 0] / z + camera.cx).astype(np.int64)
-    v = np.rint(camera.fy * cells_cam[:, 1] / z + camera.cy).astype(np.int64)
+    u, v = np.rint(camera.project(cells_cam)).astype(np.int64).T
     half = COLUMN_PX // 2
     confirmed, contradicted = np.zeros(len(z), dtype=bool), np.zeros(len(z), dtype=bool)
     for index in range(len(z)):
@@ -200,10 +199,7 @@ def upward_extension(
         return UpwardExtension(np.zeros((0, 3, 3)), 0, 0)
     quads, side = np.concatenate(cells), np.concatenate(sizes)
     centres = quads.mean(axis=1)
-    _, first = np.unique(np.floor(centres / np.median(side)).astype(np.int64), axis=0, return_index=True)
-    kept = np.sort(first)
+    kept = one_per_grid_square(centres, float(np.median(side)))
     quads, centres = quads[kept], centres[kept]
     through = seen_through(centres, camera, poses_world_cam, [lidar.depth() for lidar in lidars])
-    quads = quads[~through]
-    triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    return UpwardExtension(triangles, n_strips, int(through.sum()))
+    return UpwardExtension(quad_triangles(quads[~through]), n_strips, int(through.sum()))
