@@ -5,6 +5,8 @@ BIN    := $(VENV)/bin
 TORCH_VERSION := 2.13.0
 STAMP  := $(VENV)/.installed
 PYTEST_ARGS ?=
+# Test processes: each test file runs whole in one of them (its fixtures are made once).
+PYTEST_WORKERS ?= 2
 
 .PHONY: setup demo test test-fast lint bench clean
 
@@ -28,11 +30,11 @@ demo: setup
 
 test: setup
 	bash scripts/ensure_test_tools.sh
-	$(BIN)/python -m pytest $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -n $(PYTEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 # Everything but the slow end-to-end tests, for a quick local loop.
 test-fast: setup
-	$(BIN)/python -m pytest -m "not slow" $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -m "not slow" -n $(PYTEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 lint: setup
 	$(BIN)/ruff check .

@@ -40,3 +40,11 @@ def lts_cli(monkeypatch, capsys):
     from lts.cli import main
 
     return lambda *args: run_console_script(main, list(args), monkeypatch, capsys)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Files with slow tests run first (stable order otherwise): with ``make test``'s worker
+    processes the longest files start at once instead of ending the run on one worker while the
+    other has nothing left to do."""
+    slow_files = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow_files)
