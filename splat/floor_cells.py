@@ -19,6 +19,8 @@ import trimesh
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from splat.camera_only import quad_triangles
+
 #: Structure taller than this above the floor is a wall: no floor is completed under it.
 WALL_HEIGHT_M = 1.8
 #: Samples of high vertical faces a cell needs to count as under a wall.
@@ -85,7 +87,7 @@ class PlaneGrid:
         corners = np.stack(
             [points - across - up, points + across - up, points + across + up, points - across + up], axis=1
         )
-        return np.concatenate([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]])
+        return quad_triangles(corners)
 
     def triangles(self, cells: np.ndarray) -> np.ndarray:
         """Two triangles per cell ``(2C, 3, 3)``, wound so that their normals point up."""
@@ -96,7 +98,7 @@ class PlaneGrid:
         corners = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.float64)
         uv = (cells[:, None, :] + corners[None]) * self.cell_m  # (C, 4, 2)
         xyz = -d * n + uv[..., :1] * u + uv[..., 1:] * v  # (C, 4, 3)
-        triangles = np.concatenate([xyz[:, [0, 1, 2]], xyz[:, [0, 2, 3]]])
+        triangles = quad_triangles(xyz)
         if np.cross(triangles[0, 1] - triangles[0, 0], triangles[0, 2] - triangles[0, 0]) @ n < 0:
             triangles = triangles[:, ::-1]
         return triangles
