@@ -9,13 +9,14 @@ LiDAR but geometry, and every frame's parallax constrains the translation.
 
 Coarse to fine over image blurs (:data:`BLUR_STAGES`), a derivative-free 6-DoF search per blur,
 each seeing the map points visible (z-buffer of the map and the frame's moving things) in at least
-:data:`MIN_VIEWS` frames at its start; then a scan along each axis for a deeper minimum
-(:func:`_out_of_the_valley`) and a descent along the free translations, each step scored on the
-points visible where it lands (:func:`_descend_translations`). A straight drive leaves two axes
-unobserved; they are kept from the guess (:func:`_straight_travel`). Grey levels are standardised
-per frame (auto-exposure), and the worst :data:`TRIM` of the points (specular surfaces, points
-hidden by something the LiDAR missed) are left out of the mean. Uncertainty: a jackknife over
-stretches of frames (:func:`_covariance`), and a check that the result is a clear minimum along
+:data:`MIN_VIEWS` frames at its start (the blurred stages a share of them, :data:`SAMPLE_BLUR`);
+then a scan along each axis for a deeper minimum (:func:`_out_of_the_valley`) and a descent along
+the free translations, each step scored on the points visible where it lands
+(:func:`_descend_translations`). A straight drive leaves two axes unobserved; they are kept from
+the guess (:func:`_straight_travel`). Grey levels are standardised per frame (auto-exposure), and
+the worst :data:`TRIM` of the points (specular surfaces, points hidden by something the LiDAR
+missed) are left out of the mean. Uncertainty: a jackknife over stretches of frames
+(:func:`_covariance`), and a check that the result is a clear minimum along
 every free translation (:func:`_flat_translations`), which the jackknife cannot see.
 """
 
@@ -48,6 +49,9 @@ OCCLUSION_PX = 7
 DEPTH_TOLERANCE = (0.03, 0.03)
 #: Powell's tolerance per stage (degrees and decimetres): coarse stages only need to hand over.
 XTOL = (3e-2, 1e-2, 1e-2, 1e-2, 3e-3, 1e-3)
+#: A stage at a blur of s working pixels scores every (s / SAMPLE_BLUR)-th point (at least
+#: MIN_POINTS of them): neighbouring points sample nearly the same grey level of a blurred image.
+SAMPLE_BLUR = 4.0
 #: How far from the guess the search may go (degrees and decimetres per axis): past the basin it
 #: is meant for (10° / 30 cm), short of places where the points project somewhere else entirely
 #: (unbounded, a 64-beam street's search ran 26-64 m away).
@@ -184,11 +188,14 @@ class _Problem:
             seen[k, shown[shown < self.n_map]] = True
         return seen
 
-    def observations(self, T: np.ndarray, frames: np.ndarray) -> _Observations:
+    def observations(self, T: np.ndarray, frames: np.ndarray, stride: int = 1) -> _Observations:
         """The map points that at least :data:`MIN_VIEWS` of ``frames`` (indices) see with
-        ``T_cam_lidar`` ``T``, one observation per (frame, point)."""
+        ``T_cam_lidar`` ``T``, one observation per (frame, point); every ``stride``-th of them
+        (fewer while under :data:`MIN_POINTS` would remain)."""
         visible = self.visible(T)[frames]
-        visible[:, visible.sum(axis=0) < MIN_VIEWS] = False
+        seen = np.flatnonzero(visible.sum(axis=0) >= MIN_VIEWS)
+        stride = max(1, min(stride, len(seen) // MIN_POINTS))
+        visible[:, np.setdiff1d(np.arange(self.n_map), seen[::stride])] = False
         rows, points = np.nonzero(visible)  # row-major: grouped by frame
         observed, compact = np.unique(points, return_inverse=True)
         per_frame = np.split(points, np.searchsorted(rows, np.arange(1, len(frames))))
@@ -281,11 +288,12 @@ def _project(
 
 
 def _search(
-    problem: _Problem, params: _Parameters, y: np.ndarray, frames: np.ndarray, xtol: float
+    problem: _Problem, params: _Parameters, y: np.ndarray, frames: np.ndarray, xtol: float, stride: int = 1
 ) -> np.ndarray:
     """Powell from coefficients ``y`` ``(k,)`` over ``frames`` (indices), with the points and
-    visibility at ``y``, to ``xtol`` (degrees / decimetres); returns the coefficients."""
-    obs = problem.observations(params.pose(y), frames)
+    visibility at ``y`` (every ``stride``-th point, :meth:`_Problem.observations`), to ``xtol``
+    (degrees / decimetres); returns the coefficients."""
+    obs = problem.observations(params.pose(y), frames, stride)
     options = {"xtol": xtol, "ftol": 1e-6}
     return minimize(
         lambda z: problem.cost(params.pose(z), obs),
@@ -357,7 +365,8 @@ def _coarse_to_fine(
     ends = []
     for sigma, xtol in zip(blurs, XTOL[-len(blurs) :], strict=True):
         problem.blur(sigma)
-        y = _search(problem, params, y, np.arange(len(problem.grays)), xtol)
+        stride = int(max(1, sigma // SAMPLE_BLUR))
+        y = _search(problem, params, y, np.arange(len(problem.grays)), xtol, stride)
         ends.append(y)
     return min(ends, key=lambda end: _self_cost(problem, params, end))
 
@@ -472,11 +481,15 @@ def _flat_translations(problem: _Problem, params: _Parameters, y: np.ndarray, he
             rise = min(rise, cost)
         if rise < here * (1 + MIN_RISE):
             direction = np.round(params.basis[3:, column], 2).tolist()
-            flat.append(
-                f"moving the camera {PROFILE_STEP_M * 100:.0f} cm along {direction} (camera frame) "
-                f"raises the cost by only {100 * (rise / here - 1):.1f} % (under {100 * MIN_RISE:.0f} %, "
-                "the rotation following): the frames hardly tell the translation along it"
-            )
+            change = 100 * (rise / here - 1)
+            moved = f"moving the camera {PROFILE_STEP_M * 100:.0f} cm along {direction} (camera frame)"
+            if change < 0:
+                flat.append(f"{moved} lowers the cost by {-change:.1f} %: the result is no minimum along it")
+            else:
+                flat.append(
+                    f"{moved} raises the cost by only {change:.1f} % (under {100 * MIN_RISE:.0f} %, the "
+                    "rotation following): the frames hardly tell the translation along it"
+                )
     return flat
 
 

@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 from calib import photo_consistency
 from calib.lidar_map import LidarMap, _one_per_voxel
 from calib.photo_consistency import (
+    MIN_POINTS,
     MIN_RISE,
     MIN_TURN_DEG,
     PROFILE_STEP_M,
@@ -77,6 +78,23 @@ def test_moving_things_hide_the_map_points_behind_them() -> None:
     assert seen[1][(np.abs(wall[:, 0]) > 2.0) | (np.abs(wall[:, 1]) > 2.0)].all()
 
 
+def test_coarse_stages_score_every_kth_point_but_never_fewer_than_the_minimum() -> None:
+    """A wall every frame sees: a stride keeps every k-th point, its observations in every frame,
+    and stops short of leaving fewer than MIN_POINTS."""
+    camera = CameraModel("pinhole", 64, 48, np.array([[40.0, 0, 32], [0, 40.0, 24], [0, 0, 1]]), np.zeros(0))
+    u, v = np.meshgrid(np.linspace(-2, 2, 100), np.linspace(-1.5, 1.5, 60))  # 6000 points, 10 m ahead
+    wall = np.column_stack([u.ravel(), v.ravel(), np.full(u.size, 10.0)])
+    image = np.zeros((48, 64), np.uint8)
+    problem = _Problem([ConsistencyFrame(image, np.eye(4)) for _ in range(3)], camera, wall)
+    every = np.arange(3)
+    full = problem.observations(np.eye(4), every)
+    assert full.n_points == len(wall) and full.xyz.shape[1] == 3 * len(wall)
+    halved = problem.observations(np.eye(4), every, stride=2)
+    assert halved.n_points == len(wall) // 2 and halved.xyz.shape[1] == 3 * (len(wall) // 2)
+    np.testing.assert_allclose(halved.xyz[:, : halved.n_points], wall[::2].T, atol=1e-6)  # float32
+    assert problem.observations(np.eye(4), every, stride=8).n_points == len(wall[::3]) >= MIN_POINTS
+
+
 def test_the_map_keeps_measured_points_one_per_voxel() -> None:
     """Points on the two faces of an edge: a voxel's mean would float between them."""
     rng = np.random.default_rng(1)
@@ -119,6 +137,9 @@ def test_a_flat_valley_along_a_translation_is_named(monkeypatch) -> None:
     assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "1.0 %" in reasons[0]
     curvature[4] = 2 * MIN_RISE
     assert _flat_translations(None, params, np.zeros(6), 1.0) == []
+    curvature[4] = -MIN_RISE  # a result that is no minimum along y: the cost falls 3 % there
+    reasons = _flat_translations(None, params, np.zeros(6), 1.0)
+    assert len(reasons) == 1 and "lowers the cost by 3.0 %" in reasons[0] and "no minimum" in reasons[0]
 
 
 class _TiltedValley:
