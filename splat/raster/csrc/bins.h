@@ -1,7 +1,7 @@
 // Host-side views of the kernels' inputs: tile lists (built by splat/raster/binning.py) and camera.
 #pragma once
 
-#include <torch/extension.h>
+#include <torch/types.h>
 
 #include "triangle_setup.h"
 

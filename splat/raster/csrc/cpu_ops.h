@@ -1,7 +1,7 @@
 // Operations of the CPU extension (bound to Python in raster_cpu.cpp).
 #pragma once
 
-#include <torch/extension.h>
+#include <torch/types.h>
 
 #include <vector>
 

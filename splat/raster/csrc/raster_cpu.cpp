@@ -6,7 +6,8 @@
 // results are deterministic without atomics.
 #include "lane_math.h"  // first: it selects the vector instruction set of ATen/cpu/vec
 
-#include <torch/extension.h>
+#include <torch/csrc/utils/pybind.h>  // the module's Tensor arguments
+#include <torch/types.h>  // not torch/extension.h: all of libtorch's C++ API doubles the compile time
 
 #include <ATen/Parallel.h>
 

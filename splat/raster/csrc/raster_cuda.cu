@@ -3,7 +3,8 @@
 // batches. The per-pair and per-triangle maths are the CPU kernel's (triangle_math.h,
 // triangle_setup.h). Pair gradients are reduced in a fixed order per (tile, triangle) slot, then
 // per triangle, so the rasteriser's backward uses no floating-point atomics.
-#include <torch/extension.h>
+#include <torch/csrc/utils/pybind.h>  // the module's Tensor arguments
+#include <torch/types.h>  // not torch/extension.h: all of libtorch's C++ API doubles the compile time
 
 #include <c10/cuda/CUDAException.h>
 #include <c10/cuda/CUDAGuard.h>

@@ -1,7 +1,7 @@
 // CPU per-triangle set-up with its backward (maths in triangle_setup.h). Doing this in C++ rather
 // than with ~100 small PyTorch ops makes it ~10x cheaper; the PyTorch version (project.py) is the
 // specification the tests hold it to.
-#include <torch/extension.h>
+#include <torch/types.h>
 
 #include <ATen/Parallel.h>
 

@@ -15,6 +15,8 @@
 //   26 support threshold (min l inside which alpha can reach 1/255; binning only, no gradient).
 #pragma once
 
+#include <math.h>  // the kernels call sqrt, fmin, isfinite unqualified: float overloads in ::
+
 #include <cmath>
 #include <cstdint>
 
