@@ -168,6 +168,7 @@ def ground_fill(
     pixel_stride: int = 4,
     complete_hidden: bool = True,
     closing_m: float = 0.6,
+    enclosing: trimesh.Trimesh | None = None,
 ) -> GroundFill:
     """The floor the warm-start mesh lacks: cells the cameras see through its holes, and hidden
     cells the room encloses.
@@ -180,7 +181,9 @@ def ground_fill(
     meets the returns. ``lidar`` ``(N, 3)``: the returns the plane is fitted to and the walls are
     found in (without them, the mesh's faces alone). With ``complete_hidden``, the floor no camera
     sees and the LiDAR does not reach is completed where the room encloses it (gaps up to
-    ``2 * closing_m`` bridged), within ``max_range_m`` of a camera along the floor.
+    ``2 * closing_m`` bridged), within ``max_range_m`` of a camera along the floor, by the walls
+    and objects of ``enclosing`` (default ``mesh``: pass the warm start before it was simplified,
+    whose thin stretches of wall a simplification breaks up).
     """
     empty = np.zeros((0, 3, 3))
     plane = fit_floor_plane(mesh, poses_world_cam, lidar)
@@ -214,7 +217,10 @@ def ground_fill(
     points = np.concatenate(hits) if hits else np.zeros((0, 3))
     walls = _wall_patches(grid, np.concatenate(crossings), np.concatenate(cameras)) if crossings else empty
     seen = np.unique(grid.cells(points), axis=0) if len(points) else np.zeros((0, 2), dtype=np.int64)
-    hidden = enclosed_hidden_cells(mesh, grid, seen, closing_m, lidar=lidar) if complete_hidden else seen[:0]
+    hidden = seen[:0]
+    if complete_hidden:
+        enclosing = mesh if enclosing is None else enclosing
+        hidden = enclosed_hidden_cells(enclosing, grid, seen, closing_m, lidar=lidar)
     hidden = hidden[grid.near(hidden, poses_world_cam[:, :3, 3], max_range_m)]
     reason = (
         f"{len(seen)} floor cells of {cell_m:g} m added under mesh holes the cameras see through"

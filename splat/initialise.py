@@ -45,7 +45,7 @@ def _scaled(triangles: np.ndarray, scale: float) -> np.ndarray:
 
 
 def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Initialisation:
-    mesh = load_mesh(scene.mesh_path)
+    mesh = full_mesh = load_mesh(scene.mesh_path)
     notes = []
     if len(mesh.faces) > config.init_max_triangles:
         notes.append(
@@ -72,8 +72,10 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         notes.append(fill_returns.reason)
         triangles = np.concatenate([triangles, fill_returns.triangles])
     if config.ground_fill:
-        complete = config.complete_hidden_floor
-        fill = ground_fill(mesh, scene.camera, poses, lidar, config.ground_cell_m, complete_hidden=complete)
+        fill = ground_fill(
+            mesh, scene.camera, poses, lidar, config.ground_cell_m,
+            complete_hidden=config.complete_hidden_floor, enclosing=full_mesh,
+        )  # fmt: skip
         notes.append(fill.reason)
         # Seen cells are scaled like the mesh faces, to overlap while they train; hidden ones never
         # train, so they keep their size (scaled, they would reach past the walls).
