@@ -35,16 +35,26 @@ ODOMETRY_POINTS = 6000
 _LK_PARAMS = {"winSize": (21, 21), "maxLevel": 3}
 
 
-def _relative_rotation(gray_a: np.ndarray, gray_b: np.ndarray, camera: CameraModel) -> np.ndarray | None:
-    """Rotation ``(3, 3)`` from frame a to frame b (``R_b_a``), or None without enough tracks."""
-    corners = cv2.goodFeaturesToTrack(gray_a, MAX_FEATURES, 0.01, 7)
+def _corners(gray: np.ndarray, camera: CameraModel) -> tuple[np.ndarray, np.ndarray] | None:
+    """Corners to track in ``gray``: pixels ``(N, 1, 2)`` float32 (OpenCV's layout) and their
+    normalised image coordinates ``(N, 2)``; None where there are too few."""
+    corners = cv2.goodFeaturesToTrack(gray, MAX_FEATURES, 0.01, 7)
     if corners is None or len(corners) < MIN_TRACKS:
         return None
-    tracked, status, _ = cv2.calcOpticalFlowPyrLK(gray_a, gray_b, corners, None, **_LK_PARAMS)
+    return corners, camera.normalized_coordinates(corners.reshape(-1, 2))
+
+
+def _relative_rotation(
+    corners: tuple[np.ndarray, np.ndarray], gray_a: np.ndarray, gray_b: np.ndarray, camera: CameraModel
+) -> np.ndarray | None:
+    """Rotation ``(3, 3)`` from frame a to frame b (``R_b_a``) from frame a's ``corners``
+    (:func:`_corners`) tracked into b, or None without enough tracks."""
+    pixels, normalised = corners
+    tracked, status, _ = cv2.calcOpticalFlowPyrLK(gray_a, gray_b, pixels, None, **_LK_PARAMS)
     good = status.ravel() == 1
     if good.sum() < MIN_TRACKS:
         return None
-    xa = camera.normalized_coordinates(corners.reshape(-1, 2)[good])
+    xa = normalised[good]
     xb = camera.normalized_coordinates(tracked.reshape(-1, 2)[good])
     finite = np.all(np.isfinite(xa), axis=1) & np.all(np.isfinite(xb), axis=1)
     xa, xb = xa[finite], xb[finite]
@@ -66,33 +76,40 @@ def frame_gap(stamps: np.ndarray, span_s: float = PAIR_SPAN_S) -> int:
 
 
 def camera_angular_velocity(
-    frames: Sequence[Frame], camera: CameraModel, span_s: float = PAIR_SPAN_S
-) -> tuple[np.ndarray, np.ndarray]:
-    """Angular velocity (rad/s, camera frame) from feature tracks and essential matrices.
+    frames: Sequence[Frame], camera: CameraModel, spans_s: Sequence[float] = (PAIR_SPAN_S,)
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Angular velocity (rad/s, camera frame) from feature tracks and essential matrices, once for
+    each of ``spans_s`` (each frame's corners are found once for all of them).
 
-    Returns times ``(K,)`` (s, host clock, midpoints of frame pairs about ``span_s`` apart) and
-    vectors ``(K, 3)``; pairs without enough tracks are left out.
+    Returns, per span, times ``(K,)`` (s, host clock, midpoints of frame pairs about that span
+    apart) and vectors ``(K, 3)``; pairs without enough tracks are left out.
     """
     grays = [to_gray(f.image) for f in frames]
     stamps = np.array([f.t_host for f in frames], dtype=np.int64)
-    gap = frame_gap(stamps, span_s)
-    times, speeds = [], []
-    for i in range(len(frames) - gap):
-        j = i + gap
-        R = _relative_rotation(grays[i], grays[j], camera)
-        dt = (stamps[j] - stamps[i]) * 1e-9
-        if R is None or dt <= 0:
-            continue
-        # recoverPose gives R_b_a = exp(-w dt) for body angular velocity w.
-        rotvec = -Rotation.from_matrix(R).as_rotvec()
-        if np.linalg.norm(rotvec) > MAX_PAIR_ROTATION:
-            continue
-        times.append((stamps[i] + (stamps[j] - stamps[i]) / 2) * 1e-9)
-        speeds.append(rotvec / dt)
-    omega = np.asarray(speeds).reshape(-1, 3)
-    if len(omega) >= MEDIAN_WINDOW:
-        omega = median_filter(omega, size=(MEDIAN_WINDOW, 1), mode="nearest")
-    return np.asarray(times), omega
+    corners: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}
+    signals = []
+    for span_s in spans_s:
+        gap = frame_gap(stamps, span_s)
+        times, speeds = [], []
+        for i in range(len(frames) - gap):
+            j = i + gap
+            if i not in corners:
+                corners[i] = _corners(grays[i], camera)
+            R = None if corners[i] is None else _relative_rotation(corners[i], grays[i], grays[j], camera)
+            dt = (stamps[j] - stamps[i]) * 1e-9
+            if R is None or dt <= 0:
+                continue
+            # recoverPose gives R_b_a = exp(-w dt) for body angular velocity w.
+            rotvec = -Rotation.from_matrix(R).as_rotvec()
+            if np.linalg.norm(rotvec) > MAX_PAIR_ROTATION:
+                continue
+            times.append((stamps[i] + (stamps[j] - stamps[i]) / 2) * 1e-9)
+            speeds.append(rotvec / dt)
+        omega = np.asarray(speeds).reshape(-1, 3)
+        if len(omega) >= MEDIAN_WINDOW:
+            omega = median_filter(omega, size=(MEDIAN_WINDOW, 1), mode="nearest")
+        signals.append((np.asarray(times), omega))
+    return signals
 
 
 def _odometry(scans: Sequence[Scan]) -> KissOdometry:

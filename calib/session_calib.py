@@ -72,10 +72,12 @@ def calibrate_time(
     # long one 9.3-14.8 ms (+-3.2-4.6, ok); on the boards preset the long one tracks chessboard
     # corners across the wrong squares and gave 183 ms (+-2.7, correlation 0.53), the short one
     # 14.6 ms (+-1.9).
-    fits = []
-    for span_s in (PAIR_SPAN_S, LONG_PAIR_SPAN_S):
-        t_cam, w_cam = camera_angular_velocity(data.frames, camera, span_s)
-        fits.append((estimate_time_offset(t_cam, w_cam, t_lid, w_lid), t_cam, w_cam, span_s))
+    spans = (PAIR_SPAN_S, LONG_PAIR_SPAN_S)
+    signals = camera_angular_velocity(data.frames, camera, spans)
+    fits = [
+        (estimate_time_offset(t_cam, w_cam, t_lid, w_lid), t_cam, w_cam, span_s)
+        for span_s, (t_cam, w_cam) in zip(spans, signals, strict=True)
+    ]
     result, t_cam, w_cam, span_s = min(fits, key=lambda fit: (fit[0].std_s, fit[3]))
     result.extra["lidar_motion"] = "imu gyro" if use_imu else "KISS-ICP odometry"
     result.extra["camera_pair_span_s"] = span_s
