@@ -194,8 +194,9 @@ class _Problem:
         (fewer while under :data:`MIN_POINTS` would remain)."""
         visible = self.visible(T)[frames]
         seen = np.flatnonzero(visible.sum(axis=0) >= MIN_VIEWS)
-        stride = max(1, min(stride, len(seen) // MIN_POINTS))
-        visible[:, np.setdiff1d(np.arange(self.n_map), seen[::stride])] = False
+        scored = np.zeros(self.n_map, dtype=bool)
+        scored[seen[:: max(1, min(stride, len(seen) // MIN_POINTS))]] = True
+        visible[:, ~scored] = False
         rows, points = np.nonzero(visible)  # row-major: grouped by frame
         observed, compact = np.unique(points, return_inverse=True)
         per_frame = np.split(points, np.searchsorted(rows, np.arange(1, len(frames))))
@@ -365,8 +366,7 @@ def _coarse_to_fine(
     ends = []
     for sigma, xtol in zip(blurs, XTOL[-len(blurs) :], strict=True):
         problem.blur(sigma)
-        stride = int(max(1, sigma // SAMPLE_BLUR))
-        y = _search(problem, params, y, np.arange(len(problem.grays)), xtol, stride)
+        y = _search(problem, params, y, np.arange(len(problem.grays)), xtol, int(sigma // SAMPLE_BLUR))
         ends.append(y)
     return min(ends, key=lambda end: _self_cost(problem, params, end))
 
