@@ -139,8 +139,8 @@ def _remove_stale_lock(lock: Path) -> None:
 
 @cache
 def cpu_extension() -> ModuleType:
-    """The C++/OpenMP rasteriser (compiled on first use)."""
-    return _load("cpu", [CSRC / "raster_cpu.cpp", CSRC / "setup_cpu.cpp"], cuda=False)
+    """The C++/OpenMP rasteriser, with the fused SSIM of the training loss (compiled on first use)."""
+    return _load("cpu", [CSRC / "raster_cpu.cpp", CSRC / "setup_cpu.cpp", CSRC / "ssim_cpu.cpp"], cuda=False)
 
 
 @cache

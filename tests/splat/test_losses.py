@@ -6,7 +6,8 @@ import kornia
 import pytest
 import torch
 
-from splat.losses import dssim, image_moments, masked_mean, ssim_map
+from splat import losses
+from splat.losses import composed_ssim_map, dssim, image_moments, masked_mean, ssim_map
 
 
 @pytest.mark.parametrize(("height", "width"), [(24, 32), (61, 47)])
@@ -65,3 +66,22 @@ def test_masked_mean_is_the_mean_of_the_selected_entries_with_its_gradient(shape
     result.backward()
     expected.backward()
     torch.testing.assert_close(ours.grad, theirs.grad, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize(("height", "width"), [(6, 9), (61, 83), (150, 40)])
+def test_the_fused_cpu_ssim_has_the_composed_values_and_gradients(height, width):
+    """Float32 on the CPU goes through the extension's kernel: the smallest image it takes (one row
+    more than the window's radius, both borders' reflections on one row), and several row blocks."""
+    generator = torch.Generator().manual_seed(4)
+    target = torch.rand(height, width, 3, generator=generator)
+    start = (target + 0.1 * torch.randn(height, width, 3, generator=generator)).clamp(0, 1)
+    upstream = torch.rand(height, width, 3, generator=generator)
+    fused, composed = start.clone().requires_grad_(), start.clone().requires_grad_()
+    assert losses._fused_kernel(fused) is not None
+
+    values = ssim_map(fused, target)
+    reference = composed_ssim_map(composed, target, image_moments(target))
+    torch.testing.assert_close(values, reference, rtol=0, atol=1e-5)
+    (values * upstream).sum().backward()
+    (reference * upstream).sum().backward()
+    torch.testing.assert_close(fused.grad, composed.grad, rtol=1e-4, atol=1e-5)

@@ -31,4 +31,16 @@ std::vector<torch::Tensor> setup_backward(const torch::Tensor& vertices,
                                           int64_t height, const torch::Tensor& d_params,
                                           int64_t n_faces);
 
+// SSIM (C, H, W) of a render x (C, H, W) against its target y (C, H, W), whose blurred mean and
+// mean square are target_moments (2C, H, W), with the window's 1-D taps; and the per-pixel
+// partials (3, C, H, W) of SSIM by the render's blurred x, x*x and x*y that ssim_backward needs.
+std::vector<torch::Tensor> ssim_forward(const torch::Tensor& x, const torch::Tensor& y,
+                                        const torch::Tensor& target_moments,
+                                        const torch::Tensor& window);
+
+// The gradient (C, H, W) for x from d(SSIM) (C, H, W).
+torch::Tensor ssim_backward(const torch::Tensor& d_ssim, const torch::Tensor& x,
+                            const torch::Tensor& y, const torch::Tensor& partials,
+                            const torch::Tensor& window);
+
 }  // namespace lts_cpu

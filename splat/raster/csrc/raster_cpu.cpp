@@ -543,4 +543,6 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("setup_cull", &lts_cpu::setup_cull, "visibility and depth key per face (CPU)");
   m.def("setup_forward", &lts_cpu::setup_forward, "per-triangle kernel parameters (CPU)");
   m.def("setup_backward", &lts_cpu::setup_backward, "backward of setup_forward (CPU)");
+  m.def("ssim_forward", &lts_cpu::ssim_forward, "SSIM map and its partials (CPU)");
+  m.def("ssim_backward", &lts_cpu::ssim_backward, "gradient of the SSIM map for the render (CPU)");
 }
