@@ -6,7 +6,9 @@ fit finds the rotation between the frames itself, so no extrinsic is needed.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
@@ -44,11 +46,13 @@ def _corners(gray: np.ndarray, camera: CameraModel) -> tuple[np.ndarray, np.ndar
     return corners, camera.normalized_coordinates(corners.reshape(-1, 2))
 
 
-def _relative_rotation(
-    corners: tuple[np.ndarray, np.ndarray], gray_a: np.ndarray, gray_b: np.ndarray, camera: CameraModel
+def _pair_rotation(
+    corners: tuple[np.ndarray, np.ndarray] | None, gray_a: np.ndarray, gray_b: np.ndarray, camera: CameraModel
 ) -> np.ndarray | None:
     """Rotation ``(3, 3)`` from frame a to frame b (``R_b_a``) from frame a's ``corners``
-    (:func:`_corners`) tracked into b, or None without enough tracks."""
+    (:func:`_corners`) tracked into b, or None without corners or enough tracks."""
+    if corners is None:
+        return None
     pixels, normalised = corners
     tracked, status, _ = cv2.calcOpticalFlowPyrLK(gray_a, gray_b, pixels, None, **_LK_PARAMS)
     good = status.ravel() == 1
@@ -86,16 +90,24 @@ def camera_angular_velocity(
     """
     grays = [to_gray(f.image) for f in frames]
     stamps = np.array([f.t_host for f in frames], dtype=np.int64)
-    corners: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}
+    gaps = [frame_gap(stamps, span_s) for span_s in spans_s]
+    # OpenCV lets go of the GIL: the frames' corners and the pairs' rotations on every core
+    # (the same results in the same order; 7.8 -> 5.3 s on the demo's 20 s room, two cores).
+    first_frames = max(0, len(frames) - min(gaps, default=1))  # the frames that start a pair
+    with ThreadPoolExecutor(max_workers=os.cpu_count()) as pool:
+        corners = list(pool.map(lambda gray: _corners(gray, camera), grays[:first_frames]))
+
+        def rotation(i: int, gap: int) -> np.ndarray | None:
+            return _pair_rotation(corners[i], grays[i], grays[i + gap], camera)
+
+        pair_rotations = [
+            list(pool.map(rotation, range(len(frames) - gap), [gap] * len(frames))) for gap in gaps
+        ]
     signals = []
-    for span_s in spans_s:
-        gap = frame_gap(stamps, span_s)
+    for gap, rotations in zip(gaps, pair_rotations, strict=True):
         times, speeds = [], []
-        for i in range(len(frames) - gap):
+        for i, R in enumerate(rotations):
             j = i + gap
-            if i not in corners:
-                corners[i] = _corners(grays[i], camera)
-            R = None if corners[i] is None else _relative_rotation(corners[i], grays[i], grays[j], camera)
             dt = (stamps[j] - stamps[i]) * 1e-9
             if R is None or dt <= 0:
                 continue
