@@ -139,8 +139,10 @@ def _remove_stale_lock(lock: Path) -> None:
 
 @cache
 def cpu_extension() -> ModuleType:
-    """The C++/OpenMP rasteriser, with the fused SSIM of the training loss (compiled on first use)."""
-    return _load("cpu", [CSRC / "raster_cpu.cpp", CSRC / "setup_cpu.cpp", CSRC / "ssim_cpu.cpp"], cuda=False)
+    """The C++/OpenMP rasteriser, with the training loss's fused SSIM and normal term (compiled on
+    first use)."""
+    sources = ["raster_cpu.cpp", "setup_cpu.cpp", "ssim_cpu.cpp", "normal_loss_cpu.cpp"]
+    return _load("cpu", [CSRC / name for name in sources], cuda=False)
 
 
 @cache

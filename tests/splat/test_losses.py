@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import kornia
 import pytest
 import torch
 
 from splat import losses
-from splat.losses import composed_ssim_map, dssim, image_moments, masked_mean, ssim_map
+from splat.losses import (
+    composed_normal_loss,
+    composed_ssim_map,
+    dssim,
+    image_moments,
+    masked_mean,
+    normal_loss,
+    ssim_map,
+)
 
 
 @pytest.mark.parametrize(("height", "width"), [(24, 32), (61, 47)])
@@ -85,3 +95,31 @@ def test_the_fused_cpu_ssim_has_the_composed_values_and_gradients(height, width)
     (values * upstream).sum().backward()
     (reference * upstream).sum().backward()
     torch.testing.assert_close(fused.grad, composed.grad, rtol=1e-4, atol=1e-5)
+
+
+def test_the_fused_cpu_normal_loss_has_the_composed_value_and_gradient():
+    """Pixels without a prior, with too little alpha and with a zero rendered normal among them."""
+    generator = torch.Generator().manual_seed(5)
+    normal = torch.randn(40, 50, 3, generator=generator)
+    normal[0, :5] = 0.0  # no rendered normal: its length is clamped
+    prior = torch.nn.functional.normalize(torch.randn(40, 50, 3, generator=generator), dim=-1)
+    prior[5:9] = 0.0  # no prior
+    alpha = torch.rand(40, 50, generator=generator)
+    alpha[:, :3] = 0.0  # nothing rendered
+    fused, composed = normal.clone().requires_grad_(), normal.clone().requires_grad_()
+    assert losses._fused_kernel(fused) is not None
+
+    value = normal_loss(SimpleNamespace(normal=fused, alpha=alpha), prior)
+    reference = composed_normal_loss(SimpleNamespace(normal=composed, alpha=alpha), prior)
+    torch.testing.assert_close(value, reference, rtol=1e-5, atol=0)
+    value.backward()
+    reference.backward()
+    torch.testing.assert_close(fused.grad, composed.grad, rtol=1e-4, atol=1e-9)
+    assert fused.grad[5:9].abs().sum() == 0 and fused.grad[:, :3].abs().sum() == 0
+
+
+def test_the_fused_normal_loss_without_a_pixel_to_average_is_zero():
+    normal = torch.randn(4, 6, 3).requires_grad_()
+    loss = normal_loss(SimpleNamespace(normal=normal, alpha=torch.ones(4, 6)), torch.zeros(4, 6, 3))
+    loss.backward()
+    assert float(loss.detach()) == 0.0 and normal.grad.abs().sum() == 0

@@ -43,4 +43,15 @@ torch::Tensor ssim_backward(const torch::Tensor& d_ssim, const torch::Tensor& x,
                             const torch::Tensor& y, const torch::Tensor& partials,
                             const torch::Tensor& window);
 
+// The normal loss (a 0-d tensor) and how many pixels it averages (a 0-d int64 tensor) of rendered
+// normals (H, W, 3) against a prior (H, W, 3) where alpha (H, W) shows a surface.
+std::vector<torch::Tensor> normal_loss_forward(const torch::Tensor& normal,
+                                               const torch::Tensor& prior,
+                                               const torch::Tensor& alpha);
+
+// The gradient (H, W, 3) for the rendered normals from d(loss) (0-d).
+torch::Tensor normal_loss_backward(const torch::Tensor& d_loss, const torch::Tensor& normal,
+                                   const torch::Tensor& prior, const torch::Tensor& alpha,
+                                   int64_t count);
+
 }  // namespace lts_cpu

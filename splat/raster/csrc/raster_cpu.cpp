@@ -544,5 +544,7 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("setup_forward", &lts_cpu::setup_forward, "per-triangle kernel parameters (CPU)");
   m.def("setup_backward", &lts_cpu::setup_backward, "backward of setup_forward (CPU)");
   m.def("ssim_forward", &lts_cpu::ssim_forward, "SSIM map and its partials (CPU)");
-  m.def("ssim_backward", &lts_cpu::ssim_backward, "gradient of the SSIM map for the render (CPU)");
+  m.def("ssim_backward", &lts_cpu::ssim_backward, "gradient of the SSIM map (CPU)");
+  m.def("normal_loss_forward", &lts_cpu::normal_loss_forward, "normal loss, its pixels (CPU)");
+  m.def("normal_loss_backward", &lts_cpu::normal_loss_backward, "its gradient (CPU)");
 }
