@@ -65,7 +65,7 @@ def _missing_toolchain(cuda: bool) -> list[str]:
     return missing
 
 
-#: A build lock older than this (s) belongs to a compile that was killed (one takes about 20 s).
+#: A build lock older than this (s) belongs to a compile that was killed (one takes about 25 s).
 STALE_LOCK_S = 600.0
 
 
@@ -94,7 +94,7 @@ def _load(target: str, sources: list[Path], cuda: bool) -> ModuleType:
             f"cannot build the {target.upper()} rasteriser: missing {'; '.join(missing)}. "
             "Use backend='reference' for the (slow) pure-PyTorch rasteriser."
         )
-    console.print(f"compiling the {target.upper()} rasteriser, once, ~20 s", highlight=False)
+    console.print(f"compiling the {target.upper()} rasteriser, once, ~25 s", highlight=False)
     build_dir.mkdir(parents=True, exist_ok=True)
     try:
         return cpp.load(
