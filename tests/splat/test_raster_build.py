@@ -6,11 +6,12 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
 
-from splat.raster.extension import BackendUnavailableError, cpu_extension
+from splat.raster.extension import CSRC, BackendUnavailableError, cpu_extension
 
 
 def test_missing_compiler_is_named(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
@@ -35,3 +36,11 @@ def test_first_build_is_announced(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr[-3000:]
     assert "compiling the CPU rasteriser, once" in result.stderr
     assert result.stdout.strip() == "True"
+
+
+def test_a_wheel_carries_every_source_the_build_needs() -> None:
+    """An install from a wheel (not editable) builds from the package's own csrc/ folder."""
+    pyproject = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())
+    patterns = pyproject["tool"]["setuptools"]["package-data"]["splat.raster"]
+    carried = {path for pattern in patterns for path in CSRC.parent.glob(pattern)}
+    assert set(CSRC.iterdir()) <= carried
