@@ -6,6 +6,7 @@ fit finds the rotation between the frames itself, so no extrinsic is needed.
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -101,7 +102,7 @@ def camera_angular_velocity(
             return _pair_rotation(corners[i], grays[i], grays[i + gap], camera)
 
         pair_rotations = [
-            list(pool.map(rotation, range(len(frames) - gap), [gap] * len(frames))) for gap in gaps
+            list(pool.map(rotation, range(len(frames) - gap), itertools.repeat(gap))) for gap in gaps
         ]
     signals = []
     for gap, rotations in zip(gaps, pair_rotations, strict=True):

@@ -7,6 +7,12 @@
 
 namespace lts_cpu {
 
+// The fused loss kernels' arguments must be contiguous float32 CPU tensors.
+inline void check_contiguous_float(const torch::Tensor& t, const char* name) {
+  TORCH_CHECK(t.device().is_cpu() && t.scalar_type() == torch::kFloat32 && t.is_contiguous(), name,
+              ": expected a contiguous float32 CPU tensor");
+}
+
 // Visibility (F,) bool and depth-sort key (F,) of every face.
 std::vector<torch::Tensor> setup_cull(const torch::Tensor& vertices, const torch::Tensor& faces,
                                       const torch::Tensor& opacities, const torch::Tensor& sigma,

@@ -25,8 +25,7 @@ inline bool counts(const float* p, float alpha) {
 }
 
 void check_pixels(const torch::Tensor& t, const char* name, int64_t channels, int64_t n) {
-  TORCH_CHECK(t.device().is_cpu() && t.scalar_type() == torch::kFloat32 && t.is_contiguous(), name,
-              ": expected a contiguous float32 CPU tensor");
+  lts_cpu::check_contiguous_float(t, name);
   TORCH_CHECK(t.numel() == channels * n, name, ": expected ", channels, " values a pixel");
 }
 

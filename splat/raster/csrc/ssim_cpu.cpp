@@ -82,8 +82,7 @@ inline void ssim_row(const float* __restrict__ moments, const float* __restrict_
 }
 
 void check_planes(const torch::Tensor& t, const char* name, int64_t C, int64_t H, int64_t W) {
-  TORCH_CHECK(t.device().is_cpu() && t.scalar_type() == torch::kFloat32 && t.is_contiguous(), name,
-              ": expected a contiguous float32 CPU tensor");
+  lts_cpu::check_contiguous_float(t, name);
   TORCH_CHECK(t.dim() == 3 && t.size(0) == C && t.size(1) == H && t.size(2) == W, name,
               ": expected shape (", C, ", ", H, ", ", W, ")");
 }
