@@ -198,44 +198,46 @@ class _Problem:
         scored[seen[:: max(1, min(stride, len(seen) // MIN_POINTS))]] = True
         visible[:, ~scored] = False
         rows, points = np.nonzero(visible)  # row-major: grouped by frame
-        observed, compact = np.unique(points, return_inverse=True)
+        # The observed points' indices among themselves, in map order (np.unique's, without a sort).
+        observed = visible.any(axis=0)
+        compact = (np.cumsum(observed) - 1)[points]
         per_frame = np.split(points, np.searchsorted(rows, np.arange(1, len(frames))))
         xyz = np.hstack([self.frame_points[f][:, p] for f, p in zip(frames, per_frame, strict=True)])
-        return _Observations(xyz, frames[rows], compact, len(observed), self.height)
+        return _Observations(xyz, rows, compact, int(observed.sum()), self.height, frames)
 
     def spreads(self, T: np.ndarray, obs: _Observations) -> tuple[np.ndarray, float]:
-        """Each observed point's grey-level variance over the frames that see it ``(n_points,)``
-        (NaN where fewer than :data:`MIN_VIEWS` do), and the variance of the points' mean grey
-        levels, with ``T_cam_lidar`` ``T`` (grey levels standardised per frame)."""
+        """The grey-level variance over the frames that see it ``(n,)`` of each observed point that
+        at least :data:`MIN_VIEWS` of them see in the image, and the variance of these points' mean
+        grey levels, with ``T_cam_lidar`` ``T`` (grey levels standardised per frame)."""
         # The search's inner loop (thousands of calls): float32 points, (3, M) for one matrix
-        # product, per-frame sums over contiguous runs instead of scattered bincounts.
+        # product, per-frame sums over contiguous runs instead of scattered bincounts, and the
+        # few observations that fall outside their image zeroed instead of weighting all of them.
         camera = T[:3, :3].astype(np.float32) @ obs.xyz + T[:3, 3, None].astype(np.float32)
         u, v, _, inside = _project(camera.T, self.K, self.width, self.height)
         # A point inside its frame samples only that frame's rows of the stack.
         values = _bilinear(self.images, u, v + obs.row_offset).astype(np.float64)
-        weight = inside.astype(np.float64)
+        outside = np.flatnonzero(~inside)
+        values[outside] = 0.0
         # Standardised per frame: auto-exposure changes gain and offset between frames.
-        weighted = weight * values
-        n_frame = np.maximum(np.add.reduceat(weight, obs.run_starts), 1)
-        mean = np.add.reduceat(weighted, obs.run_starts) / n_frame
-        square = np.add.reduceat(weighted * values, obs.run_starts) / n_frame
+        missed = np.bincount(obs.run[outside], minlength=len(obs.run_lengths))
+        n_frame = np.maximum(obs.run_lengths - missed, 1)
+        mean = np.add.reduceat(values, obs.run_starts) / n_frame
+        square = np.add.reduceat(values * values, obs.run_starts) / n_frame
         scale = 1 / np.sqrt(np.maximum(square - mean**2, 1e-6))
         values = (values - np.repeat(mean, obs.run_lengths)) * np.repeat(scale, obs.run_lengths)
-        weighted = weight * values
-        count = np.bincount(obs.point, weight, minlength=obs.n_points)
+        values[outside] = 0.0
+        count = obs.point_counts - np.bincount(obs.point[outside], minlength=obs.n_points)
         good = count >= MIN_VIEWS
-        count = np.maximum(count, 1)
-        point_mean = np.bincount(obs.point, weighted, minlength=obs.n_points) / count
-        point_square = np.bincount(obs.point, weighted * values, minlength=obs.n_points) / count
-        spread = np.where(good, np.maximum(point_square - point_mean**2, 0.0), np.nan)
-        return spread, float(np.var(point_mean[good])) if good.any() else 0.0
+        point_mean = np.bincount(obs.point, values, minlength=obs.n_points)[good] / count[good]
+        point_square = np.bincount(obs.point, values * values, minlength=obs.n_points)[good] / count[good]
+        spread = np.maximum(point_square - point_mean**2, 0.0)
+        return spread, float(np.var(point_mean)) if len(point_mean) else 0.0
 
     def cost(self, T: np.ndarray, obs: _Observations) -> float:
         """The photo-inconsistency of the observed points with ``T_cam_lidar`` ``T``: the mean of
         :meth:`spreads` over the points but the worst :data:`TRIM`, over the variance between
         points (so that moving every point onto one flat wall does not pay)."""
         spread, between = self.spreads(T, obs)
-        spread = spread[np.isfinite(spread)]
         kept = int(len(spread) * (1 - TRIM))
         if kept < MIN_POINTS // 4:
             return 1e3
@@ -244,19 +246,30 @@ class _Problem:
 
 class _Observations:
     """Flat (frame, point) observations, grouped by frame: the point in the frame's LiDAR
-    coordinates ``xyz`` ``(3, M)`` float32, its frame index ``frame`` ``(M,)`` and its index
-    ``point`` ``(M,)`` among the ``n_points`` observed points; ``image_height`` the frames' (the
-    images are stacked)."""
+    coordinates ``xyz`` ``(3, M)`` float32, the position ``row`` ``(M,)`` of its frame in
+    ``frames`` (indices into the problem's frames, ascending) and its index ``point`` ``(M,)``
+    among the ``n_points`` observed points; ``image_height`` the frames' (the images are stacked)."""
 
     def __init__(
-        self, xyz: np.ndarray, frame: np.ndarray, point: np.ndarray, n_points: int, image_height: int
+        self,
+        xyz: np.ndarray,
+        row: np.ndarray,
+        point: np.ndarray,
+        n_points: int,
+        image_height: int,
+        frames: np.ndarray,
     ) -> None:
         self.xyz, self.point, self.n_points = xyz, point, n_points
         #: ``(M,)`` the first row of each observation's frame in the stacked images.
-        self.row_offset = frame.astype(np.float32) * image_height
-        #: Each frame's run in the flat arrays: first index and length ``(R,)``.
-        self.run_starts = np.flatnonzero(np.r_[True, frame[1:] != frame[:-1]]) if len(frame) else frame
-        self.run_lengths = np.diff(np.r_[self.run_starts, len(frame)])
+        self.row_offset = frames[row].astype(np.float32) * image_height
+        #: The frames that see something, each a run of the flat arrays: first index and length
+        #: ``(R,)``, and ``run`` ``(M,)`` each observation's.
+        per_frame = np.bincount(row, minlength=len(frames))
+        self.run_lengths = per_frame[per_frame > 0]
+        self.run_starts = np.cumsum(self.run_lengths) - self.run_lengths
+        self.run = (np.cumsum(per_frame > 0) - 1)[row]
+        #: ``(n_points,)`` how many frames observe each point.
+        self.point_counts = np.bincount(point, minlength=n_points)
 
 
 def _bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
