@@ -43,14 +43,21 @@ class SamplingStrategy(Strategy):
         """Zero the largest blending weight ``(F,)`` (CPU) seen of each triangle."""
         self.max_weight = torch.zeros(model.n_triangles, dtype=model.params["vertices"].dtype)
 
+    def last_densification(self) -> int:
+        """How many iterations are done when the model is densified for the last time (0: never)."""
+        c = self.config
+        return int(c.densify_until * c.iterations) // c.densify_every * c.densify_every
+
     def collects_at(self, iteration: int) -> bool:
-        """Whether ``iteration``'s render feeds the statistics (only until the last densification)."""
-        return iteration < self.config.densify_until * self.config.iterations
+        """Whether ``iteration``'s render feeds the statistics: only the renders before the last
+        densification (on the default preset, 1500 of 3000 iterations, not the 1650 up to
+        ``densify_until``)."""
+        return iteration < self.last_densification()
 
     def densifies_after(self, iteration: int) -> bool:
         """Whether the model is densified after ``iteration`` (0-based)."""
-        done, c = iteration + 1, self.config
-        return done % c.densify_every == 0 and done <= c.densify_until * c.iterations
+        done = iteration + 1
+        return done % self.config.densify_every == 0 and done <= self.last_densification()
 
     def gather(self, model: TriangleModel, out: RenderOutput, view: View) -> None:
         """Fold one render of ``view`` into the statistics."""

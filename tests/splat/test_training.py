@@ -222,6 +222,16 @@ def test_a_strategy_densifies_on_schedule_and_moves_adam_state_with_the_rows():
     optimizer.step()  # the optimiser still works on the new tensors
 
 
+def test_statistics_are_gathered_only_for_a_densification_still_to_come():
+    # The default schedule: densify every 500 iterations while at most 55 % of 3000 are done.
+    strategy = OpacityStrategy(make_config("ours", "default"), log=lambda *_: None)
+    assert strategy.last_densification() == 1500
+    assert [strategy.densifies_after(i) for i in (498, 499, 1499, 1649, 1999)] == [
+        False, True, True, False, False,
+    ]  # fmt: skip
+    assert strategy.collects_at(1499) and not strategy.collects_at(1500)
+
+
 def test_ground_fill_covers_a_hole_in_the_floor():
     mesh = corner_mesh(12)
     centroids = mesh.triangles_center
