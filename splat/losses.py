@@ -16,8 +16,8 @@ import torch.nn.functional as F
 from torch import Tensor
 
 from splat.config import TrainConfig
-from splat.raster import BackendUnavailableError, RenderOutput
-from splat.raster.extension import cpu_extension
+from splat.raster import RenderOutput
+from splat.raster.extension import optional_cpu_extension
 
 
 @dataclass
@@ -124,15 +124,7 @@ def _fused_kernel(rendered: Tensor) -> ModuleType | None:
     built or buildable here, else None."""
     if rendered.device.type != "cpu" or rendered.dtype != torch.float32:
         return None
-    return _cpu_kernel()
-
-
-@cache
-def _cpu_kernel() -> ModuleType | None:
-    try:
-        return cpu_extension()
-    except BackendUnavailableError:
-        return None
+    return optional_cpu_extension()
 
 
 class _FusedNormalLoss(torch.autograd.Function):

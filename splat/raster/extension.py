@@ -20,6 +20,11 @@ HEADERS = [
 # -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
 # kernel's skip/stop decisions match the reference exactly. -fopenmp: at::parallel_for is inline
 # and runs serially in code compiled without it (libgomp is the one PyTorch already loaded).
+#: The CPU extension: the rasteriser (with the module's bindings), the per-triangle set-up, the
+#: training loss's fused terms and the densification's per-face sums.
+CPU_SOURCES = (
+    "raster_cpu.cpp", "setup_cpu.cpp", "ssim_cpu.cpp", "normal_loss_cpu.cpp", "dominant_sums_cpu.cpp",
+)  # fmt: skip
 CPU_FLAGS = ["-O3", "-march=native", "-ffp-contract=off", "-fopenmp"]
 LINK_FLAGS = ["-fopenmp"]
 CUDA_FLAGS = ["-O3", "--fmad=false"]
@@ -139,10 +144,19 @@ def _remove_stale_lock(lock: Path) -> None:
 
 @cache
 def cpu_extension() -> ModuleType:
-    """The C++/OpenMP rasteriser, with the training loss's fused SSIM and normal term (compiled on
-    first use)."""
-    sources = ["raster_cpu.cpp", "setup_cpu.cpp", "ssim_cpu.cpp", "normal_loss_cpu.cpp"]
-    return _load("cpu", [CSRC / name for name in sources], cuda=False)
+    """The C++/OpenMP rasteriser, with the training loss's fused SSIM and normal term and the
+    densification's per-face sums (compiled on first use)."""
+    return _load("cpu", [CSRC / name for name in CPU_SOURCES], cuda=False)
+
+
+@cache
+def optional_cpu_extension() -> ModuleType | None:
+    """:func:`cpu_extension`, or None where it cannot be built: for the fused kernels whose PyTorch
+    compositions (their specifications) can stand in."""
+    try:
+        return cpu_extension()
+    except BackendUnavailableError:
+        return None
 
 
 @cache

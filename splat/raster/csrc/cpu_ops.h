@@ -60,4 +60,9 @@ torch::Tensor normal_loss_backward(const torch::Tensor& d_loss, const torch::Ten
                                    const torch::Tensor& prior, const torch::Tensor& alpha,
                                    int64_t count);
 
+// Count (F,) int64, sum and sum of squares (F,) of values (H, W) over the valid (H, W) bool pixels
+// each face dominates (dominant (H, W) int64, -1: none).
+std::vector<torch::Tensor> dominant_sums(const torch::Tensor& dominant, const torch::Tensor& values,
+                                         const torch::Tensor& valid, int64_t n_faces);
+
 }  // namespace lts_cpu
