@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import torch
@@ -42,6 +43,14 @@ class View:
     moving_mask: Tensor | None = None
     image_moments: Tensor | None = None
     color_map: Tensor | None = None
+
+    @cached_property
+    def normal_known(self) -> Tensor | None:
+        """``(H, W)`` bool: the pixels whose normal prior is finite and non-zero (None without a
+        prior). Kept once made: the densification statistics read it at every iteration."""
+        if self.normal is None:
+            return None
+        return torch.isfinite(self.normal).all(dim=-1) & (self.normal.abs().sum(dim=-1) > 0)
 
     def scored_rgb(self, rgb: Tensor) -> Tensor:
         """A render ``(H, W, 3)`` of this view as it is scored: through :attr:`color_map`, clipped to

@@ -45,14 +45,14 @@ def depth_error(out: RenderOutput, lidar_depth: Tensor) -> tuple[Tensor, Tensor]
     return lidar_depth - out.accumulated_depth.detach(), lidar_returns(lidar_depth)
 
 
-def normal_error(out: RenderOutput, prior: Tensor) -> tuple[Tensor, Tensor]:
+def normal_error(out: RenderOutput, prior: Tensor, known: Tensor) -> tuple[Tensor, Tensor]:
     """Per-pixel ``1 - n_prior · n_r`` ``(H, W)`` with ``n_r`` the unit rendered normal, and where it
-    counts ``(H, W)`` bool (a finite, non-zero prior and a rendered normal)."""
+    counts ``(H, W)`` bool: where the prior ``(H, W, 3)`` is ``known`` ``(H, W)`` bool (finite and
+    non-zero, :attr:`~splat.views.View.normal_known`) and a normal is rendered."""
     normal = out.normal.detach()
     length = normal.norm(dim=-1, keepdim=True)
     unit = normal / length.clamp(min=torch.finfo(normal.dtype).tiny)
-    valid = torch.isfinite(prior).all(dim=-1) & (prior.abs().sum(dim=-1) > 0) & (length[..., 0] > 0)
-    return 1.0 - (prior * unit).sum(dim=-1), valid
+    return 1.0 - (prior * unit).sum(dim=-1), known & (length[..., 0] > 0)
 
 
 def color_error(out: RenderOutput, view: View) -> tuple[Tensor, Tensor]:
@@ -104,7 +104,7 @@ class VarianceStrategy(SamplingStrategy):
         if view.depth is not None:
             self.depth_error.add(out.dominant_sums(*depth_error(out, view.depth)))
         if view.normal is not None:
-            self.normal_error.add(out.dominant_sums(*normal_error(out, view.normal)))
+            self.normal_error.add(out.dominant_sums(*normal_error(out, view.normal, view.normal_known)))
         self.color_error.add(out.dominant_sums(*color_error(out, view)))
 
     def _noise_ratios(self) -> tuple[Tensor, Tensor, Tensor]:

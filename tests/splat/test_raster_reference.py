@@ -115,7 +115,8 @@ def test_sums_of_the_geometric_errors_over_dominated_pixels(backend: str) -> Non
         backend=backend,
     )  # fmt: skip
     depth_sums = out.dominant_sums(*depth_error(out, target))
-    normal_sums = out.dominant_sums(*normal_error(out, normal_target))
+    known = torch.ones(CAMERA.height, CAMERA.width, dtype=torch.bool)
+    normal_sums = out.dominant_sums(*normal_error(out, normal_target, known))
     owned = (out.dominant == 0) & (target > 0)
     err = (target - out.accumulated_depth)[owned]
     assert int(depth_sums.count[0]) == int(owned.sum()) > 0
