@@ -67,14 +67,16 @@ class SweepView:
     ranges: np.ndarray
 
 
-def _bins(directions: np.ndarray, config: DynamicConfig) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
-    """Row and column ``(N,)`` of unit sensor-frame ``directions`` ``(N, 3)``, and the image shape."""
+def _bins(directions: np.ndarray, config: DynamicConfig) -> tuple[np.ndarray, tuple[int, int]]:
+    """Flat index ``(N,)`` into the range image of unit sensor-frame ``directions`` ``(N, 3)``, and
+    the image's shape (rows by elevation, columns by azimuth). Flat, because ``np.minimum.at``
+    and gathers take one index array several times faster than a row and a column array."""
     shape = (int(np.ceil(180.0 / config.elevation_step_deg)), int(np.ceil(360.0 / config.azimuth_step_deg)))
     elevation = np.degrees(np.arcsin(np.clip(directions[:, 2], -1.0, 1.0)))
     azimuth = np.degrees(np.arctan2(directions[:, 1], directions[:, 0])) + 180.0
     row = np.clip(((elevation + 90.0) / config.elevation_step_deg).astype(np.int64), 0, shape[0] - 1)
     col = np.clip((azimuth / config.azimuth_step_deg).astype(np.int64), 0, shape[1] - 1)
-    return row, col, shape
+    return row * shape[1] + col, shape
 
 
 def sweep_view(
@@ -82,11 +84,11 @@ def sweep_view(
 ) -> SweepView:
     """A :class:`SweepView` of de-skewed sensor-frame points ``(N, 3)`` at pose ``(4, 4)``."""
     ranges = np.linalg.norm(points_sensor, axis=1)
-    row, col, shape = _bins(points_sensor / np.maximum(ranges, 1e-9)[:, None], config)
-    image = np.full(shape, np.inf, dtype=np.float32)
-    np.minimum.at(image, (row, col), ranges.astype(np.float32))
+    pixel, shape = _bins(points_sensor / np.maximum(ranges, 1e-9)[:, None], config)
+    image = np.full(shape[0] * shape[1], np.inf, dtype=np.float32)
+    np.minimum.at(image, pixel, ranges.astype(np.float32))
     # Neighbourhood minimum; azimuth wraps round, elevation does not (its edges stay empty).
-    image = minimum_filter(image, size=3, mode=("constant", "wrap"), cval=np.inf)
+    image = minimum_filter(image.reshape(shape), size=3, mode=("constant", "wrap"), cval=np.inf)
     return SweepView(t_s, T_world_sensor, transform_points(T_world_sensor, points_sensor), image)
 
 
@@ -94,8 +96,8 @@ def seen_through(points_world: np.ndarray, other: SweepView, config: DynamicConf
     """``(N,)`` bool: ``other`` sees past points ``(N, 3)`` (world) in their directions."""
     local = transform_points(invert(other.T_world_sensor), points_world)
     ranges = np.linalg.norm(local, axis=1)
-    row, col, _ = _bins(local / np.maximum(ranges, 1e-9)[:, None], config)
-    seen = other.ranges[row, col]
+    pixel, _ = _bins(local / np.maximum(ranges, 1e-9)[:, None], config)
+    seen = other.ranges.reshape(-1)[pixel]
     margin = np.maximum(config.margin_m, config.margin_relative * ranges)
     return np.isfinite(seen) & (seen > ranges + margin)
 
