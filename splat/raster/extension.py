@@ -17,14 +17,14 @@ HEADERS = [
     CSRC / name
     for name in ("triangle_math.h", "lane_math.h", "triangle_setup.h", "bins.h", "cpu_ops.h", "pixel_io.h")
 ]
-# -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
-# kernel's skip/stop decisions match the reference exactly. -fopenmp: at::parallel_for is inline
-# and runs serially in code compiled without it (libgomp is the one PyTorch already loaded).
 #: The CPU extension: the rasteriser (with the module's bindings), the per-triangle set-up, the
 #: training loss's fused terms and the densification's per-face sums.
 CPU_SOURCES = (
     "raster_cpu.cpp", "setup_cpu.cpp", "ssim_cpu.cpp", "normal_loss_cpu.cpp", "dominant_sums_cpu.cpp",
 )  # fmt: skip
+# -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
+# kernel's skip/stop decisions match the reference exactly. -fopenmp: at::parallel_for is inline
+# and runs serially in code compiled without it (libgomp is the one PyTorch already loaded).
 CPU_FLAGS = ["-O3", "-march=native", "-ffp-contract=off", "-fopenmp"]
 LINK_FLAGS = ["-fopenmp"]
 CUDA_FLAGS = ["-O3", "--fmad=false"]
