@@ -59,11 +59,22 @@ def dominant_sums(dominant: Tensor, values: Tensor, valid: Tensor, n_faces: int)
             f"values {tuple(values.shape)} and valid {tuple(valid.shape)} must have the image's shape "
             f"{tuple(dominant.shape)}"
         )
-    kernel = optional_cpu_extension() if dominant.device.type == "cpu" else None
+    kernel = optional_cpu_extension() if _kernel_takes(dominant, values, valid) else None
     if kernel is None:
         return composed_dominant_sums(dominant, values, valid, n_faces)
     tensors = (t.contiguous() for t in (dominant, values, valid))
     return DominantSums(*kernel.dominant_sums(*tensors, n_faces))
+
+
+def _kernel_takes(dominant: Tensor, values: Tensor, valid: Tensor) -> bool:
+    """Whether the CPU kernel takes these arguments: CPU tensors, int64 faces, float32 or float64
+    values and a bool mask (the composition takes any)."""
+    return (
+        dominant.device.type == "cpu"
+        and dominant.dtype == torch.int64
+        and values.dtype in (torch.float32, torch.float64)
+        and valid.dtype == torch.bool
+    )
 
 
 @torch.no_grad()

@@ -186,3 +186,11 @@ def test_dominant_sums_match_their_composition_to_the_bit(dtype: torch.dtype) ->
     assert int(ours.count.sum()) == int((valid & (dominant >= 0)).sum()) and not ours.count[40:].any()
     with pytest.raises(RuntimeError, match="face 39 of 39"):
         cpu_extension().dominant_sums(dominant, values, valid, 39)
+
+
+def test_dominant_sums_of_other_dtypes_take_the_composition() -> None:
+    dominant = torch.tensor([[0, 1], [1, -1]])
+    values = torch.tensor([[1.0, 2.0], [3.0, 4.0]], dtype=torch.bfloat16)
+    sums = dominant_sums(dominant, values, torch.ones(2, 2, dtype=torch.bool), 2)  # not the kernel's
+    assert sums.count.tolist() == [1, 2] and sums.sum.tolist() == [1.0, 5.0]
+    assert sums.sum.dtype == torch.bfloat16
