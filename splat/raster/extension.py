@@ -21,6 +21,7 @@ HEADERS = [
 #: training loss's fused terms and the densification's per-face sums.
 CPU_SOURCES = (
     "raster_cpu.cpp", "setup_cpu.cpp", "ssim_cpu.cpp", "normal_loss_cpu.cpp", "dominant_sums_cpu.cpp",
+    "error_sums_cpu.cpp",
 )  # fmt: skip
 # -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
 # kernel's skip/stop decisions match the reference exactly. -fopenmp: at::parallel_for is inline

@@ -15,9 +15,10 @@ from splat.config import make_config
 from splat.init_mesh import decouple_and_scale, ground_fill
 from splat.model import TriangleModel, load_model
 from splat.param_rows import make_optimizer, replace_rows
+from splat.raster.extension import optional_cpu_extension
 from splat.strategy import OpacityStrategy, VarianceStrategy
 from splat.strategy.growth import cloned_rows, subdivided_rows
-from splat.strategy.variance import color_error, depth_error, shared_budget
+from splat.strategy.variance import color_error, composed_error_sums, depth_error, error_sums, shared_budget
 from splat.trainer import Trainer, TrainingDivergedError, train
 from splat.views import View, load_views
 
@@ -123,6 +124,35 @@ def test_variance_statistics_match_a_direct_computation():
         assert int(strategy.depth_error.count[face]) == 2 * mask.sum()
         assert float(strategy.depth_error.variance()[face]) == pytest.approx(expected, rel=1e-3, abs=1e-6)
     assert torch.equal(depth_error(out, target)[1], target > 0)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64], ids=["f32", "f64"])
+def test_error_sums_of_the_cpu_kernel_match_their_composition_to_the_bit(dtype):
+    model = _model(40, seed=3)
+    model.params = {k: v.to(dtype) if v.is_floating_point() else v for k, v in model.params.items()}
+    g = torch.Generator().manual_seed(6)
+    shape = (CAMERA.height, CAMERA.width)
+    image = torch.rand(*shape, 3, generator=g, dtype=dtype)
+    depth = torch.where(torch.rand(shape, generator=g) < 0.5, 3.0 + torch.rand(shape, generator=g), 0.0)
+    depth[0, :5] = float("inf")  # not a return
+    normal = torch.nn.functional.normalize(torch.randn(*shape, 3, generator=g, dtype=dtype), dim=-1)
+    normal[:10] = 0.0  # no prior
+    normal[10, :3] = float("nan")
+    moving = torch.rand(shape, generator=g) < 0.2
+    out = model.render(CAMERA, torch.eye(4, dtype=dtype))
+    assert optional_cpu_extension() is not None  # the kernel is what is compared, not the fallback
+    views = [
+        View("all", torch.eye(4, dtype=dtype), image, depth.to(dtype), normal, moving_mask=moving),
+        View("bare", torch.eye(4, dtype=dtype), image, depth=None, normal=None),
+    ]
+    for view in views:
+        fused, composed = error_sums(out, view), composed_error_sums(out, view)
+        for ours, spec in zip(fused, composed, strict=True):
+            assert (ours is None) == (spec is None)
+            for name in () if ours is None else ("count", "sum", "sum_sq"):
+                assert torch.equal(getattr(ours, name), getattr(spec, name)), (view.name, name)
+        assert int(fused[2].count.sum()) > 0
+    assert int(error_sums(out, views[0])[1].count.sum()) > 0
 
 
 def test_densification_with_all_zero_weights_is_skipped_not_a_crash():

@@ -65,4 +65,16 @@ torch::Tensor normal_loss_backward(const torch::Tensor& d_loss, const torch::Ten
 std::vector<torch::Tensor> dominant_sums(const torch::Tensor& dominant, const torch::Tensor& values,
                                          const torch::Tensor& valid, int64_t n_faces);
 
+// The variance densification's depth, normal and colour error sums of one render: count (F,)
+// int64, sum and sum of squares (F,) of each, in that order (9 tensors). lidar_depth (H, W), prior
+// (H, W, 3) with normal_length (H, W) and known (H, W) bool, and moving (H, W) bool may be empty.
+std::vector<torch::Tensor> error_sums(const torch::Tensor& dominant, int64_t n_faces,
+                                      const torch::Tensor& accumulated_depth,
+                                      const torch::Tensor& lidar_depth,
+                                      const torch::Tensor& normal,
+                                      const torch::Tensor& normal_length,
+                                      const torch::Tensor& prior, const torch::Tensor& known,
+                                      const torch::Tensor& rgb, const torch::Tensor& image,
+                                      const torch::Tensor& alpha, const torch::Tensor& moving);
+
 }  // namespace lts_cpu
