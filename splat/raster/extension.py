@@ -18,10 +18,9 @@ HEADERS = [
     for name in ("triangle_math.h", "lane_math.h", "triangle_setup.h", "bins.h", "cpu_ops.h", "pixel_io.h")
 ]
 #: The CPU extension: the rasteriser (with the module's bindings), the per-triangle set-up, the
-#: training loss's fused terms and the densification's per-face sums.
+#: training loss's fused terms and the densification's error sums.
 CPU_SOURCES = (
-    "raster_cpu.cpp", "setup_cpu.cpp", "ssim_cpu.cpp", "normal_loss_cpu.cpp", "dominant_sums_cpu.cpp",
-    "error_sums_cpu.cpp",
+    "raster_cpu.cpp", "setup_cpu.cpp", "ssim_cpu.cpp", "normal_loss_cpu.cpp", "error_sums_cpu.cpp",
 )  # fmt: skip
 # -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's (no fused multiply-add), so the
 # kernel's skip/stop decisions match the reference exactly. -fopenmp: at::parallel_for is inline
@@ -146,7 +145,7 @@ def _remove_stale_lock(lock: Path) -> None:
 @cache
 def cpu_extension() -> ModuleType:
     """The C++/OpenMP rasteriser, with the training loss's fused SSIM and normal term and the
-    densification's per-face sums (compiled on first use)."""
+    densification's error sums (compiled on first use)."""
     return _load("cpu", [CSRC / name for name in CPU_SOURCES], cuda=False)
 
 

@@ -12,7 +12,6 @@ from splat.raster.binning import bin_triangles
 from splat.raster.extension import cpu_extension
 from splat.raster.project import Intrinsics, project_triangles
 from splat.raster.scenes import pinhole, random_scene
-from splat.raster.stats import composed_dominant_sums, dominant_sums
 
 TOLERANCE = {torch.float64: 1e-5, torch.float32: 1e-3}
 # Absolute floor for quantities that are zero in theory but rounding noise in practice (gradients
@@ -169,28 +168,3 @@ def test_cpu_binning_matches_the_pytorch_binning() -> None:
     for name in ("tile_offsets", "tile_slots", "slot_tri", "tri_offsets"):
         assert torch.equal(getattr(ours, name), getattr(spec, name)), name
     assert len(spec.tile_slots) > len(tris.bounds)
-
-
-@DTYPES
-def test_dominant_sums_match_their_composition_to_the_bit(dtype: torch.dtype) -> None:
-    g = torch.Generator().manual_seed(3)
-    dominant = torch.randint(-1, 40, (61, 83), generator=g)  # -1: no face
-    values = torch.randn(61, 83, generator=g, dtype=dtype)
-    valid = torch.rand(61, 83, generator=g) > 0.3
-    values[~valid] = float("nan")  # ignored where not valid
-    ours = dominant_sums(dominant, values, valid, 45)  # faces 40-44 dominate nothing
-    spec = composed_dominant_sums(dominant, values, valid, 45)
-    for name in ("count", "sum", "sum_sq"):
-        a, b = getattr(ours, name), getattr(spec, name)
-        assert a.dtype == b.dtype and torch.equal(a, b), name
-    assert int(ours.count.sum()) == int((valid & (dominant >= 0)).sum()) and not ours.count[40:].any()
-    with pytest.raises(RuntimeError, match="face 39 of 39"):
-        cpu_extension().dominant_sums(dominant, values, valid, 39)
-
-
-def test_dominant_sums_of_other_dtypes_take_the_composition() -> None:
-    dominant = torch.tensor([[0, 1], [1, -1]])
-    values = torch.tensor([[1.0, 2.0], [3.0, 4.0]], dtype=torch.bfloat16)
-    sums = dominant_sums(dominant, values, torch.ones(2, 2, dtype=torch.bool), 2)  # not the kernel's
-    assert sums.count.tolist() == [1, 2] and sums.sum.tolist() == [1.0, 5.0]
-    assert sums.sum.dtype == torch.bfloat16

@@ -60,11 +60,6 @@ torch::Tensor normal_loss_backward(const torch::Tensor& d_loss, const torch::Ten
                                    const torch::Tensor& prior, const torch::Tensor& alpha,
                                    int64_t count);
 
-// Count (F,) int64, sum and sum of squares (F,) of values (H, W) over the valid (H, W) bool pixels
-// each face dominates (dominant (H, W) int64, -1: none).
-std::vector<torch::Tensor> dominant_sums(const torch::Tensor& dominant, const torch::Tensor& values,
-                                         const torch::Tensor& valid, int64_t n_faces);
-
 // The variance densification's depth, normal and colour error sums of one render: count (F,)
 // int64, sum and sum of squares (F,) of each, in that order (9 tensors). lidar_depth (H, W), prior
 // (H, W, 3) with normal_length (H, W) and known (H, W) bool, and moving (H, W) bool may be empty.

@@ -1,12 +1,12 @@
 // The variance densification's statistics of one render in one pass (splat/strategy/variance.py's
-// composed_error_sums, its depth, normal and colour errors summed by dominant_sums, is the
-// specification the tests hold this to). Written by hand because the composition takes a dozen
+// composed_error_sums, its depth, normal and colour errors summed per face by
+// splat/raster/stats.py's dominant_sums, is the specification the tests hold this to). Written by hand because the composition takes a dozen
 // passes over the image, three of them over (H, W, 3) with PyTorch's slow reductions over a last
 // dimension of three: 3.1 ms of each of the first 1500 iterations of a 320x240 training.
 //
 // Each error is computed with the composition's operations in its order (the normal's length is
-// PyTorch's, passed in), and summed serially in pixel order like dominant_sums: the same sums to
-// the bit.
+// PyTorch's, passed in), and summed serially in pixel order and in the values' precision like
+// dominant_sums' bincounts: the same sums to the bit.
 #include <torch/types.h>
 
 #include <cmath>

@@ -547,6 +547,5 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("ssim_backward", &lts_cpu::ssim_backward, "gradient of the SSIM map (CPU)");
   m.def("normal_loss_forward", &lts_cpu::normal_loss_forward, "normal loss, its pixels (CPU)");
   m.def("normal_loss_backward", &lts_cpu::normal_loss_backward, "its gradient (CPU)");
-  m.def("dominant_sums", &lts_cpu::dominant_sums, "per-face sums over dominated pixels (CPU)");
   m.def("error_sums", &lts_cpu::error_sums, "the densification's error sums (CPU)");
 }
