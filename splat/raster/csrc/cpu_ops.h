@@ -13,6 +13,17 @@ inline void check_contiguous_float(const torch::Tensor& t, const char* name) {
               ": expected a contiguous float32 CPU tensor");
 }
 
+// A per-pixel argument of the fused kernels: a contiguous CPU tensor of `dtype` with `per_pixel`
+// values for each of `n` pixels (or empty, where `optional`).
+inline void check_pixels(const torch::Tensor& t, const char* name, int64_t per_pixel, int64_t n,
+                         torch::ScalarType dtype, bool optional = false) {
+  if (optional && t.numel() == 0) return;
+  TORCH_CHECK(t.device().is_cpu() && t.scalar_type() == dtype && t.is_contiguous() &&
+                  t.numel() == per_pixel * n,
+              name, ": expected a contiguous CPU tensor of ", per_pixel, " ",
+              c10::toString(dtype), " a pixel");
+}
+
 // Visibility (F,) bool and depth-sort key (F,) of every face.
 std::vector<torch::Tensor> setup_cull(const torch::Tensor& vertices, const torch::Tensor& faces,
                                       const torch::Tensor& opacities, const torch::Tensor& sigma,

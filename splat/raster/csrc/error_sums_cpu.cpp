@@ -1,8 +1,9 @@
 // The variance densification's statistics of one render in one pass (splat/strategy/variance.py's
 // composed_error_sums, its depth, normal and colour errors summed per face by
-// splat/raster/stats.py's dominant_sums, is the specification the tests hold this to). Written by hand because the composition takes a dozen
-// passes over the image, three of them over (H, W, 3) with PyTorch's slow reductions over a last
-// dimension of three: 3.1 ms of each of the first 1500 iterations of a 320x240 training.
+// splat/raster/stats.py's dominant_sums, is the specification the tests hold this to). Written by
+// hand because the composition takes a dozen passes over the image, three of them over (H, W, 3)
+// with PyTorch's slow reductions over a last dimension of three: 3.1 ms of each of the first 1500
+// iterations of a 320x240 training.
 //
 // Each error is computed with the composition's operations in its order (the normal's length is
 // PyTorch's, passed in), and summed serially in pixel order and in the values' precision like
@@ -22,15 +23,6 @@ const T* optional_data(const torch::Tensor& t) {
   return t.numel() > 0 ? t.data_ptr<T>() : nullptr;
 }
 
-void check_image(const torch::Tensor& t, const char* name, int64_t per_pixel, int64_t n,
-                 torch::ScalarType dtype, bool optional) {
-  if (optional && t.numel() == 0) return;
-  TORCH_CHECK(t.device().is_cpu() && t.scalar_type() == dtype && t.is_contiguous() &&
-                  t.numel() == per_pixel * n,
-              name, ": expected a contiguous CPU tensor of ", per_pixel, " ",
-              c10::toString(dtype), " a pixel");
-}
-
 }  // namespace
 
 namespace lts_cpu {
@@ -45,17 +37,17 @@ std::vector<torch::Tensor> error_sums(const torch::Tensor& dominant, int64_t n_f
                                       const torch::Tensor& alpha, const torch::Tensor& moving) {
   const int64_t n = dominant.numel();
   const auto dtype = accumulated_depth.scalar_type();
-  check_image(dominant, "dominant", 1, n, torch::kInt64, false);
-  check_image(accumulated_depth, "accumulated_depth", 1, n, dtype, false);
-  check_image(lidar_depth, "lidar_depth", 1, n, dtype, true);
-  check_image(normal, "normal", 3, n, dtype, false);
-  check_image(normal_length, "normal_length", 1, n, dtype, prior.numel() == 0);
-  check_image(prior, "prior", 3, n, dtype, true);
-  check_image(known, "known", 1, n, torch::kBool, prior.numel() == 0);
-  check_image(rgb, "rgb", 3, n, dtype, false);
-  check_image(image, "image", 3, n, dtype, false);
-  check_image(alpha, "alpha", 1, n, dtype, false);
-  check_image(moving, "moving", 1, n, torch::kBool, true);
+  check_pixels(dominant, "dominant", 1, n, torch::kInt64);
+  check_pixels(accumulated_depth, "accumulated_depth", 1, n, dtype);
+  check_pixels(lidar_depth, "lidar_depth", 1, n, dtype, true);
+  check_pixels(normal, "normal", 3, n, dtype);
+  check_pixels(normal_length, "normal_length", 1, n, dtype, prior.numel() == 0);
+  check_pixels(prior, "prior", 3, n, dtype, true);
+  check_pixels(known, "known", 1, n, torch::kBool, prior.numel() == 0);
+  check_pixels(rgb, "rgb", 3, n, dtype);
+  check_pixels(image, "image", 3, n, dtype);
+  check_pixels(alpha, "alpha", 1, n, dtype);
+  check_pixels(moving, "moving", 1, n, torch::kBool, true);
   std::vector<torch::Tensor> sums;
   for (int q = 0; q < 3; ++q) {
     sums.push_back(torch::zeros({n_faces}, dominant.options()));

@@ -24,11 +24,6 @@ inline bool counts(const float* p, float alpha) {
   return (std::fabs(p[0]) + std::fabs(p[1]) + std::fabs(p[2])) > 0.0f && alpha > kMinAlpha;
 }
 
-void check_pixels(const torch::Tensor& t, const char* name, int64_t channels, int64_t n) {
-  lts_cpu::check_contiguous_float(t, name);
-  TORCH_CHECK(t.numel() == channels * n, name, ": expected ", channels, " values a pixel");
-}
-
 }  // namespace
 
 namespace lts_cpu {
@@ -37,9 +32,9 @@ std::vector<torch::Tensor> normal_loss_forward(const torch::Tensor& normal,
                                                const torch::Tensor& prior,
                                                const torch::Tensor& alpha) {
   const int64_t n = alpha.numel();
-  check_pixels(normal, "normal", 3, n);
-  check_pixels(prior, "prior", 3, n);
-  check_pixels(alpha, "alpha", 1, n);
+  lts_cpu::check_pixels(normal, "normal", 3, n, torch::kFloat32);
+  lts_cpu::check_pixels(prior, "prior", 3, n, torch::kFloat32);
+  lts_cpu::check_pixels(alpha, "alpha", 1, n, torch::kFloat32);
   const float* np_ = normal.data_ptr<float>();
   const float* pp = prior.data_ptr<float>();
   const float* ap = alpha.data_ptr<float>();
@@ -78,9 +73,9 @@ torch::Tensor normal_loss_backward(const torch::Tensor& d_loss, const torch::Ten
                                    const torch::Tensor& prior, const torch::Tensor& alpha,
                                    int64_t count) {
   const int64_t n = alpha.numel();
-  check_pixels(normal, "normal", 3, n);
-  check_pixels(prior, "prior", 3, n);
-  check_pixels(alpha, "alpha", 1, n);
+  lts_cpu::check_pixels(normal, "normal", 3, n, torch::kFloat32);
+  lts_cpu::check_pixels(prior, "prior", 3, n, torch::kFloat32);
+  lts_cpu::check_pixels(alpha, "alpha", 1, n, torch::kFloat32);
   auto d_normal = torch::zeros_like(normal);
   if (count == 0) return d_normal;
   const float scale = d_loss.item<float>() / static_cast<float>(count);
