@@ -114,7 +114,13 @@ class TrainConfig(BaseModel):
     sigma_end: float = Field(0.05, gt=0)
     sigma_anneal_end: float = Field(0.7, gt=0, le=1)
     floor_rise_start: float = Field(0.55, ge=0, le=1)
-    floor_rise_end: float = Field(0.8, ge=0, le=1)
+    floor_rise_end: float = Field(
+        0.7,
+        ge=0,
+        le=1,
+        description="the floor has risen by here, with sigma's anneal; the opaque, sharp phase that "
+        "follows hardly gains (docs/training.md, Schedules), so early stopping can end it",
+    )
 
     # Background: what the camera sees beyond the triangles (sky, structure above the LiDAR's field).
     background: Literal["sh", "none"] = Field(
@@ -172,6 +178,14 @@ class TrainConfig(BaseModel):
         "lost 1.1 dB of test PSNR; the room's 320x240 at 160x120 lost nothing)",
     )
     eval_every: int = Field(250, ge=1)
+    final_eval_every: int = Field(
+        50,
+        ge=1,
+        description="once every schedule has reached its end (opaque, sharp triangles), the held-out "
+        "views are evaluated this often, so that early stopping can end a run that no longer gains: "
+        "with eval_every alone the default run's last 600 iterations held only two evaluations and "
+        "could never stop",
+    )
     patience: int = Field(3, ge=1, description="evaluations without improvement before stopping")
     min_improvement_db: float = Field(0.05, ge=0)
     drop_redundant_keyframes: bool = True

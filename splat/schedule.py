@@ -48,3 +48,12 @@ def final_phase_start(config: TrainConfig) -> int:
     """First iteration at which every schedule has reached its final value (opaque, sharp): from
     here on, early stopping may end the run without leaving it half-annealed."""
     return math.ceil(max(config.sigma_anneal_end, config.floor_rise_end) * config.iterations)
+
+
+def evaluation_due(config: TrainConfig, done: int) -> bool:
+    """Whether the held-out views are evaluated after ``done`` iterations: every ``eval_every``,
+    every ``final_eval_every`` from :func:`final_phase_start` on (where early stopping may end the
+    run), and after the last."""
+    if done == config.iterations or done % config.eval_every == 0:
+        return True
+    return done >= final_phase_start(config) and done % config.final_eval_every == 0

@@ -36,7 +36,7 @@ from splat.model import TriangleModel, save_model
 from splat.param_rows import make_optimizer
 from splat.pose_corrections import PoseCorrections
 from splat.raster import RenderOutput
-from splat.schedule import final_phase_start, schedule_at
+from splat.schedule import evaluation_due, final_phase_start, schedule_at
 from splat.strategy import DensifyReport, strategy_for
 from splat.views import View, load_views, redundant_keyframes
 
@@ -468,7 +468,7 @@ class Trainer:
                     self.state.iteration = it + 1
                     self.state.elapsed_s += time.perf_counter() - started
                     done = self.state.iteration
-                    if done % config.eval_every == 0 or done == config.iterations:
+                    if evaluation_due(config, done):
                         self._evaluate(done, losses)
                         self._maybe_stop_early()
                     if done % config.checkpoint_every == 0:

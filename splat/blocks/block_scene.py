@@ -86,6 +86,7 @@ def block_config(config: TrainConfig, block: Block, n_train_scene: int) -> Train
             "iterations": iterations,
             "densify_every": scaled(config.densify_every),
             "eval_every": scaled(config.eval_every),
+            "final_eval_every": scaled(config.final_eval_every),
             "checkpoint_every": scaled(config.checkpoint_every),
         }
     )

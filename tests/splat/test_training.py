@@ -16,6 +16,7 @@ from splat.init_mesh import decouple_and_scale, ground_fill
 from splat.model import TriangleModel, load_model
 from splat.param_rows import make_optimizer, replace_rows
 from splat.raster.extension import optional_cpu_extension
+from splat.schedule import evaluation_due, final_phase_start
 from splat.strategy import OpacityStrategy, VarianceStrategy
 from splat.strategy.growth import cloned_rows, subdivided_rows
 from splat.strategy.variance import color_error, composed_error_sums, depth_error, error_sums, shared_budget
@@ -262,6 +263,29 @@ def test_statistics_are_gathered_only_for_a_densification_still_to_come():
     assert strategy.collects_at(1499) and not strategy.collects_at(1500)
 
 
+def test_held_out_views_are_evaluated_often_enough_for_early_stopping_once_the_schedules_end():
+    config = make_config("ours", "default")
+    assert final_phase_start(config) == 2100  # the opacity floor has risen, sigma is annealed
+    due = [i for i in range(1, config.iterations + 1) if evaluation_due(config, i)]
+    assert due[:3] == [250, 500, 750] and 2125 not in due
+    assert [i for i in due if i >= 1750] == [1750, 2000, *range(2100, 3001, 50)]
+    # Patience 3: a run that gains nothing in its final phase stops 750 iterations early.
+    assert final_phase_start(config) + config.patience * config.final_eval_every == 2250
+
+
+def test_training_stops_early_when_the_held_out_views_gain_nothing_in_the_final_phase(scene_dir, tmp_path):
+    run = tmp_path / "run"
+    config = _tiny_config(iterations=120, final_eval_every=5, patience=2, min_improvement_db=100.0)
+    result = train(scene_dir, run, config, progress=False, log=lambda *_: None)
+    # The final phase starts at 84: evaluated at 85 (the best so far), 90 and 95, then stopped.
+    lines = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    assert [line["iteration"] for line in lines] == [20, 40, 60, 80, 85, 90, 95]
+    assert result.stopped_early
+    assert any("stopped early at iteration 95" in s and "(25 iterations" in s for s in result.skips)
+    assert json.loads((run / "summary.json").read_text())["stopped_early"]
+    assert load_model(run / "model.pt").n_triangles == result.n_triangles
+
+
 def test_ground_fill_covers_a_hole_in_the_floor():
     mesh = corner_mesh(12)
     centroids = mesh.triangles_center
@@ -338,7 +362,8 @@ def test_resume_after_a_kill_reaches_identical_parameters(scene_dir, tmp_path, m
     assert torch.equal(a.background, b.background)
     assert resumed.test == whole.test
     lines = (tmp_path / "killed" / "metrics.jsonl").read_text().splitlines()
-    assert [json.loads(line)["iteration"] for line in lines] == [20, 40, 60]
+    # Every 20 iterations, and every 50 once the final phase starts (at 42).
+    assert [json.loads(line)["iteration"] for line in lines] == [20, 40, 50, 60]
 
 
 def test_keeping_the_views_image_moments_changes_nothing_but_the_time(scene_dir, tmp_path, monkeypatch):
