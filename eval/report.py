@@ -37,6 +37,7 @@ _GROUPS = {
     "Photometry (held-out views)": [
         ("psnr", "PSNR", "db"),
         ("psnr_color_aligned", "PSNR, each view's colours fitted (exposure)", "db"),
+        ("psnr_hard_edges", "PSNR with hard triangle edges (as a mesh rasteriser draws them)", "db"),
         ("ssim", "SSIM", "ratio"),
         ("lpips", "LPIPS", "ratio"),
         ("depth_error_median_m", "LiDAR depth error, median", "m"),

@@ -55,7 +55,8 @@ def evaluate_run_command(
     holes = _text(m["hole_fraction_leaned"], " %", 100, 2)
     lines = [
         f"test views ({m['n_test_views']}): PSNR {psnr} (each view's colours fitted to its image: "
-        f"{_text(m['psnr_color_aligned'], ' dB', digits=2)}), SSIM {ssim}, LPIPS {lpips}; "
+        f"{_text(m['psnr_color_aligned'], ' dB', digits=2)}; with hard triangle edges: "
+        f"{_text(m['psnr_hard_edges'], ' dB', digits=2)}), SSIM {ssim}, LPIPS {lpips}; "
         f"LiDAR depth error median {depth}",
         f"geometry at {m['threshold_m']:g} m: F-score {_text(m['fscore'])} (visible GT "
         f"{_text(m['fscore_visible'])}), Chamfer-L1 {_text(m['chamfer_m'], ' cm', 100, 2)}; sample to "

@@ -77,6 +77,7 @@ def test_every_contract_field_and_sensible_numbers_against_the_ground_truth(tiny
     assert metrics["gt_alignment_rmse_m"] < 1e-6
     assert 10 < metrics["psnr"] < 60 and 0 < metrics["ssim"] <= 1
     assert metrics["psnr_color_aligned"] >= metrics["psnr"] - 0.05  # a fitted colour map only helps
+    assert 10 < metrics["psnr_hard_edges"] < 60 and metrics["psnr_hard_edges"] != metrics["psnr"]
     assert metrics["depth_error_median_m"] < 0.05 and metrics["depth_error_pixels"] > 100
     assert metrics["hole_reference"] == "ground_truth"
     assert 0 <= metrics["hole_fraction_leaned"] < 0.1
