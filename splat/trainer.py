@@ -246,11 +246,12 @@ class Trainer:
             if not checkpoint.is_file():
                 raise InputError("no checkpoint to resume from (start without --resume)", path=checkpoint)
             previous = load_config(config_path).model_dump(exclude={"device"})
-            changed = [k for k, v in previous.items() if getattr(self.config, k) != v]
+            changed = [f"{k} {v} -> {getattr(self.config, k)}" for k, v in previous.items()
+                       if getattr(self.config, k) != v]  # fmt: skip
             if changed:
                 raise InputError(
                     f"the run was started with other settings ({', '.join(changed)}); resume with the same "
-                    "options or train into a new --out",
+                    "options, or train into a new --out where a default changed since",
                     path=config_path,
                 )
         elif checkpoint.is_file():

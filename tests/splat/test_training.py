@@ -11,6 +11,7 @@ import torch
 import trimesh
 from training_scene import CAMERA, camera_poses, corner_mesh, write_training_scene
 
+from rig.errors import InputError
 from splat.config import make_config
 from splat.init_mesh import decouple_and_scale, ground_fill
 from splat.model import TriangleModel, load_model
@@ -364,6 +365,14 @@ def test_resume_after_a_kill_reaches_identical_parameters(scene_dir, tmp_path, m
     lines = (tmp_path / "killed" / "metrics.jsonl").read_text().splitlines()
     # Every 20 iterations, and every 50 once the final phase starts (at 42).
     assert [json.loads(line)["iteration"] for line in lines] == [20, 40, 50, 60]
+
+
+def test_resuming_with_other_settings_names_each_change(scene_dir, tmp_path):
+    run = tmp_path / "run"
+    train(scene_dir, run, _tiny_config(iterations=20), progress=False, log=lambda *_: None)
+    with pytest.raises(InputError, match=r"other settings \(seed 0 -> 1, floor_rise_end 0.7 -> 0.8\)"):
+        train(scene_dir, run, _tiny_config(iterations=20, seed=1, floor_rise_end=0.8), resume=True,
+              progress=False, log=lambda *_: None)  # fmt: skip
 
 
 def test_keeping_the_views_image_moments_changes_nothing_but_the_time(scene_dir, tmp_path, monkeypatch):
