@@ -182,9 +182,8 @@ class TrainConfig(BaseModel):
         50,
         ge=1,
         description="once every schedule has reached its end (opaque, sharp triangles), the held-out "
-        "views are evaluated this often, so that early stopping can end a run that no longer gains: "
-        "with eval_every alone the default run's last 600 iterations held only two evaluations and "
-        "could never stop",
+        "views are evaluated this often, so that early stopping can end a run that no longer gains "
+        "(with eval_every alone, a final phase shorter than patience evaluations could never stop)",
     )
     patience: int = Field(3, ge=1, description="evaluations without improvement before stopping")
     min_improvement_db: float = Field(0.05, ge=0)
