@@ -18,7 +18,8 @@ evaluate   metrics against ``--gt`` and the report         ``train/eval.json``, 
 The recording (a session, or a bag read in place) is opened once, with its topic map and time
 span, and handed to every stage; a bag is fingerprinted by the size and modification time of its
 files, never read for it. Each stage calls its package's entry point in this process, through one
-:class:`~lts.stages.StageRunner`: a stage whose inputs and options are unchanged since it
+:class:`~lts.stages.StageRunner` (the fallback mapper, which needs no calibration, runs beside the
+recording's calibration in a process of its own, :mod:`lts.mapper_beside`): a stage whose inputs and options are unchanged since it
 finished is skipped, so a crash or Ctrl-C resumes at the stage that stopped. A training folder
 made with other options or on an older scene is kept as ``train.previous-N``, never deleted.
 """
@@ -28,11 +29,13 @@ from __future__ import annotations
 import json
 import shutil
 from collections.abc import Callable, Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, field
-from functools import cache
+from functools import cache, partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from lts.mapper_beside import MapperBeside
 from lts.stages import StageRecord, StageRunner
 from rig.errors import InputError
 from rig.recording_options import CALIB_FROM_RECORDING, span_key
@@ -100,22 +103,25 @@ def reconstruct(o: ReconstructOptions, log: Callable[[str], None] = print) -> Re
     source, paths = o.recording_key(), recording.input_files()
 
     if o.calib is not None and str(o.calib) == CALIB_FROM_RECORDING:
-        key = ["recording calibration (CameraInfo, /tf_static)", *source]
-        stages.run("calibrate", key, paths, calib, lambda: recording_calibration(recording, calib, log))
+        key, inputs = ["recording calibration (CameraInfo, /tf_static)", *source], paths
+        work = partial(recording_calibration, recording, calib, log)
     elif o.calib is not None:
         key, inputs = ["copy", str(o.calib)], [o.calib]
-        stages.run("calibrate", key, inputs, calib, lambda: copy_calibration(o.calib, calib))
+        work = partial(copy_calibration, o.calib, calib)
     else:
         key = ["lts calibrate session", *source, "--init", str(o.init)]
         inputs = [*paths, *([o.init] if o.init is not None else [])]
-        stages.run("calibrate", key, inputs, calib, lambda: calibrate(recording, o.init, calib, log))
-
-    if o.slam is not None:
-        key, inputs = ["lts slam import", str(o.slam)], [o.slam]
-        stages.run("slam", key, inputs, slam / "mesh.ply", lambda: import_slam(o.slam, slam, log))
-    else:
-        key, inputs = ["lts slam run", *source], [*paths, calib]
-        stages.run("slam", key, inputs, slam / "mesh.ply", lambda: map_session(recording, slam, log))
+        work = partial(calibrate, recording, o.init, calib, log)
+    # Only calibrating the recording takes long enough for the mapper to pay for a process beside it.
+    beside = o.calib is None and o.slam is None and not stages.up_to_date("calibrate", key, inputs, calib)
+    with MapperBeside(recording, slam) if beside else nullcontext() as mapper:
+        stages.run("calibrate", key, inputs, calib, work)
+        if o.slam is not None:
+            key, inputs = ["lts slam import", str(o.slam)], [o.slam]
+            stages.run("slam", key, inputs, slam / "mesh.ply", lambda: import_slam(o.slam, slam, log))
+        else:
+            mapped = partial(joined, mapper, log) if mapper else partial(map_session, recording, slam, log)
+            stages.run("slam", ["lts slam run", *source], paths, slam / "mesh.ply", mapped)
 
     keyframes = prepare_config(o)
     key, inputs = ["lts prepare", *source, *prepare_key(keyframes)], [*paths, calib, slam]
@@ -232,6 +238,14 @@ def map_session(session: Recording, out: Path, log: Callable[[str], None]) -> No
 
     for line in run_fallback_mapper(session, out).describe():
         log(f"  {line}")
+
+
+def joined(mapper: MapperBeside, log: Callable[[str], None]) -> None:
+    """The slam stage when the fallback mapper ran beside the calibration: its end awaited."""
+    summary, seconds = mapper.join()
+    for line in summary.describe():
+        log(f"  {line}")
+    log(f"  mapped in {seconds:.1f} s, beside the calibration in a process of its own")
 
 
 def prepare_config(o: ReconstructOptions) -> PrepareConfig:

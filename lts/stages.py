@@ -78,10 +78,10 @@ class StageRunner:
         """Call ``work`` unless stage ``name`` is up to date; record it as finished when ``work``
         returns. An exception from ``work`` leaves the stage unrecorded (a rerun starts here) and
         propagates."""
-        digest = fingerprint(key, inputs)
-        if self._finished.get(name) == digest and output.exists():
+        if self.up_to_date(name, key, inputs, output):
             self.log(f"[{name}] up to date, skipped")
             return self._add(StageRecord(name, "skipped", 0.0))
+        digest = fingerprint(key, inputs)
         for later in self.order[self.order.index(name) :]:
             self._finished.pop(later, None)
         self._save()
@@ -98,6 +98,11 @@ class StageRunner:
         self._finished[name] = digest
         self._save()
         return self._add(StageRecord(name, "ran", round(time.perf_counter() - started, 2)))
+
+    def up_to_date(self, name: str, key: Sequence[str], inputs: Sequence[Path], output: Path) -> bool:
+        """Whether :meth:`run` with these arguments would skip stage ``name`` now (a stage before it
+        that runs still makes it run)."""
+        return self._finished.get(name) == fingerprint(key, inputs) and output.exists()
 
     def _add(self, record: StageRecord) -> StageRecord:
         self.records.append(record)

@@ -48,11 +48,14 @@ def _write(path: Path, text: str) -> None:
 
 def test_a_finished_stage_is_skipped_until_its_inputs_change(tmp_path: Path, inputs: list[Path]) -> None:
     out, log = tmp_path / "a.txt", []
+    assert not _runner(tmp_path, log).up_to_date("a", ["make", "a"], inputs, out)
     ran = _runner(tmp_path, log).run("a", ["make", "a"], inputs, out, lambda: _write(out, "a"))
     assert ran.status == "ran"
+    assert _runner(tmp_path, log).up_to_date("a", ["make", "a"], inputs, out)
     again = _runner(tmp_path, log).run("a", ["make", "a"], inputs, out, lambda: pytest.fail("redone"))
     assert again.status == "skipped" and "[a] up to date, skipped" in log
     (inputs[0] / "a.bin").write_bytes(b"changed")
+    assert not _runner(tmp_path, log).up_to_date("a", ["make", "a"], inputs, out)
     redone = _runner(tmp_path, log).run("a", ["make", "a"], inputs, out, lambda: _write(out, "a2"))
     assert redone.status == "ran" and out.read_text() == "a2"
 
