@@ -1,10 +1,11 @@
 """The fallback mapper in a process of its own, beside the calibration.
 
-The two stages read the same recording and neither needs the other's output, but the calibration
-is mostly one thread of NumPy (its photo-consistency search) and the mapper's registration has
-the other core. On the demo's 20 s room on two cores, calibrating then mapping took 45.4 s,
-side by side 36.5 s, with the same calibration and the same map. A process, not a thread: both
-hold the GIL between their array operations.
+The two stages read the same recording and neither needs the other's output, and the calibration
+is mostly one thread of NumPy (its photo-consistency search): the mapper, on one thread, takes the
+other core. On one recording of the demo's 20 s room, on two cores, calibrating then mapping took
+47.1 / 47.5 / 52.2 s, side by side 44.4 / 42.6 / 40.8 s (alternated), with the same calibration and
+the same map to the byte. A process, not a thread: both hold the GIL between their array
+operations.
 
 The child is ``python -m lts.mapper_beside``, handed the open recording and the SLAM folder
 pickled on its stdin; it writes its summary (or its exception) pickled to a file named on its

@@ -18,10 +18,11 @@ evaluate   metrics against ``--gt`` and the report         ``train/eval.json``, 
 The recording (a session, or a bag read in place) is opened once, with its topic map and time
 span, and handed to every stage; a bag is fingerprinted by the size and modification time of its
 files, never read for it. Each stage calls its package's entry point in this process, through one
-:class:`~lts.stages.StageRunner` (the fallback mapper, which needs no calibration, runs beside the
-recording's calibration in a process of its own, :mod:`lts.mapper_beside`): a stage whose inputs and options are unchanged since it
-finished is skipped, so a crash or Ctrl-C resumes at the stage that stopped. A training folder
-made with other options or on an older scene is kept as ``train.previous-N``, never deleted.
+:class:`~lts.stages.StageRunner`, except the fallback mapper: it needs no calibration and runs
+beside the recording's calibration in a process of its own (:mod:`lts.mapper_beside`). A stage
+whose inputs and options are unchanged since it finished is skipped, so a crash or Ctrl-C resumes
+at the stage that stopped. A training folder made with other options or on an older scene is
+kept as ``train.previous-N``, never deleted.
 """
 
 from __future__ import annotations
