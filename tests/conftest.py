@@ -31,6 +31,17 @@ def real_data() -> Path:
     return REAL_DATA
 
 
+@pytest.fixture(scope="session")
+def quick_room(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``lts sim --quick``: 3 s of the room preset, 160x120, Mid-360-like LiDAR (8000 points/scan)."""
+    from rig.sim.config import SimConfig
+    from rig.sim.simulate import simulate
+
+    out = tmp_path_factory.mktemp("quick_room")
+    simulate(SimConfig().quick(), out)
+    return out
+
+
 @pytest.fixture
 def lts_cli(monkeypatch, capsys):
     """``lts ARGS...`` run in this process as the console script does; returns

@@ -13,14 +13,8 @@ from slam_bridge.map_session import map_session
 
 
 @pytest.fixture(scope="module")
-def quick_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """``lts sim --quick``: 3 s of the room, 30 sweeps."""
-    from rig.sim.config import SimConfig
-    from rig.sim.simulate import simulate
-
-    out = tmp_path_factory.mktemp("quick_room")
-    simulate(SimConfig().quick(), out)
-    return out / "session.mcap"
+def quick_session(quick_room: Path) -> Path:
+    return quick_room / "session.mcap"
 
 
 def test_the_mapper_beside_writes_what_the_mapper_writes_here(quick_session: Path, tmp_path: Path) -> None:

@@ -15,17 +15,6 @@ def simulate_room(out: Path, **overrides) -> Path:
 
 
 @pytest.fixture(scope="session")
-def quick_room(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """``lts sim --quick``: 3 s of the room preset, 160x120, Mid-360-like LiDAR (8000 points/scan)."""
-    from rig.sim.config import SimConfig
-    from rig.sim.simulate import simulate
-
-    out = tmp_path_factory.mktemp("quick_room")
-    simulate(SimConfig().quick(), out)
-    return out
-
-
-@pytest.fixture(scope="session")
 def gt_slam_dir(quick_room: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A SLAM folder made of the ground truth: the true mesh and the true LiDAR trajectory."""
     return write_truth_slam(quick_room, tmp_path_factory.mktemp("gt_slam"))
