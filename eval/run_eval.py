@@ -13,6 +13,9 @@ pictures of the report.
 - **Geometry against the test keyframes' LiDAR** (always; :mod:`eval.lidar_agreement`): the mesh's
   precision, recall and F-score at 20 cm against the held-out returns, the pseudo ground truth of a
   real recording (the ``lidar_*`` fields).
+- **Ghosts of traffic** (needs a virtual-rig ground truth with moving objects;
+  :mod:`eval.mover_ghosts`): the fraction of the mesh's area inside the movers' swept volumes
+  (``mover_swept_area_fraction``).
 - **Leaned views** (:func:`~eval.leaned_poses` of the test poses): a hole is a pixel where the
   reference has a surface and the model's accumulated alpha is < 0.5. The reference is the ground
   truth when given, otherwise the scene's SLAM mesh (``hole_reference`` says which).
@@ -40,6 +43,7 @@ from eval.leaned_views import ALPHA_SURFACE, hit_mask, leaned_poses
 from eval.lidar_agreement import lidar_agreement
 from eval.lpips_net import LpipsAlex
 from eval.lpips_weights import HOW_TO_GET, load_lpips
+from eval.mover_ghosts import swept_area_fraction
 from eval.moving_pixels import mover_names, moving_pixel_masks
 from eval.photometric import color_aligned, lpips, psnr, ssim
 from eval.seams import seam_drops, seam_holes
@@ -91,6 +95,7 @@ GT_FIELDS = (
     "fall_through_rate",
     "height_error_mean_m",
     "height_error_max_m",
+    "mover_swept_area_fraction",
 )
 #: Fields of the mesh against the test keyframes' LiDAR (:mod:`eval.lidar_agreement`).
 LIDAR_FIELDS = (
@@ -492,7 +497,8 @@ def evaluate_run(
         truth = load_ground_truth(scene, gt)
 
     moving = None
-    if gt is not None and (movers := _rig_movers_dir(Path(gt))) is not None:
+    movers = None if gt is None else _rig_movers_dir(Path(gt))
+    if movers is not None:
         log(f"finding the pixels of the moving objects in {len(tests)} test views")
         moving = moving_pixel_masks(movers, scene.camera, np.array([k.t_ns for k in tests]))
     log(f"rendering {len(tests)} test views")
@@ -528,7 +534,14 @@ def evaluate_run(
         reasons["chamfer_m"] = f"the run has no exported mesh ({mesh_path})"
     else:
         log(f"comparing {mesh_path.name} with the ground truth ({samples} samples each)")
-        points = _geometry(load_mesh(mesh_path), scene, truth, threshold_m, samples, metrics)
+        reconstructed = load_mesh(mesh_path)
+        points = _geometry(reconstructed, scene, truth, threshold_m, samples, metrics)
+        if movers is None:
+            reasons["mover_swept_area_fraction"] = "the ground truth has no moving objects (movers/)"
+        else:
+            metrics["mover_swept_area_fraction"] = swept_area_fraction(
+                reconstructed, truth.T_gt_world, movers, samples
+            )
     _lidar(mesh_path, scene, tests, metrics, reasons, log)
     if truth is not None and physics:
         log("dropping physics probes on the collision mesh and the ground truth")

@@ -54,3 +54,18 @@ def test_a_mover_behind_the_static_scene_masks_nothing(tmp_path: Path) -> None:
 
 def test_a_ground_truth_without_movers_has_none(tmp_path: Path) -> None:
     assert mover_names(tmp_path) == []
+
+
+def test_mesh_area_inside_a_movers_swept_volume(tmp_path: Path) -> None:
+    """Of two equal squares, one lies inside the cube at its first pose: half the area is a ghost,
+    counted in the ground truth's world after the scene-to-truth transform."""
+    from eval.mover_ghosts import swept_area_fraction
+
+    gt = _ground_truth(tmp_path, mover_z=5.0)
+    square = trimesh.Trimesh(
+        [[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], [[0, 1, 2], [0, 2, 3]]
+    )
+    scene_to_gt = _translation(0, 0, 5)  # the scene's origin is the cube's first centre
+    mesh = trimesh.util.concatenate([square, square.copy().apply_translation([10, 0, 0])])
+    assert abs(swept_area_fraction(mesh, scene_to_gt, gt, 4000) - 0.5) < 0.05
+    assert swept_area_fraction(square, np.eye(4), gt, 1000) == 0.0  # at z = 0: in front of the cube
