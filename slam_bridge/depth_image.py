@@ -4,6 +4,7 @@ background points "shine through" gaps beside foreground objects)."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from scipy.ndimage import minimum_filter
 
@@ -30,6 +31,22 @@ def nearest_returns(
     first = np.ones(len(order), dtype=bool)
     first[1:] = flat[order[1:]] != flat[order[:-1]]
     return flat[order[first]], candidates[order[first]]
+
+
+#: A moving point masks the pixels within this fraction of the image width around it, which joins
+#: the beams' hits on a vehicle into one region.
+MOVING_MASK_RADIUS_FRACTION = 0.01
+
+
+def moving_pixel_mask(points_cam: np.ndarray, camera: CameraModel) -> np.ndarray:
+    """``(H, W)`` bool: the pixels within :data:`MOVING_MASK_RADIUS_FRACTION` of the image width
+    of the projection of any camera-frame point ``(N, 3)`` (the points of moving objects)."""
+    pixels, _ = nearest_returns(points_cam, camera)
+    mask = np.zeros((camera.height, camera.width), dtype=np.uint8)
+    mask.flat[pixels] = 1
+    radius = max(1, round(MOVING_MASK_RADIUS_FRACTION * camera.width))
+    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+    return cv2.dilate(mask, disk).astype(bool)
 
 
 def zbuffer_depth(points_cam: np.ndarray, camera: CameraModel, near_m: float = 0.05) -> np.ndarray:

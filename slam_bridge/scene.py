@@ -33,16 +33,13 @@ from rig.camera import CameraModel
 from rig.data_file import load_data_file
 from rig.errors import InputError
 from rig.transforms import check_rigid
-from slam_bridge.depth_image import nearest_returns, visible_returns
+from slam_bridge.depth_image import moving_pixel_mask, visible_returns
 from slam_bridge.prepare_config import PrepareConfig
 
 SCENE_FILE = "scene.json"
 SPARSE_POINTS_FILE = "sparse_points.ply"
 LIDAR_DIR = "lidar"
 MOVING_DIR = "moving"
-#: A moving point masks the pixels within this fraction of the image width around it, which joins
-#: the beams' hits on a vehicle into one region.
-MOVING_MASK_RADIUS_FRACTION = 0.01
 #: Version of the folder layout; 1 kept depth images instead of LiDAR points and no options.
 FORMAT_VERSION = 2
 Split = Literal["train", "test"]
@@ -126,17 +123,12 @@ class Scene:
         return self.lidar(keyframe).depth()
 
     def moving_mask(self, keyframe: Keyframe) -> np.ndarray | None:
-        """``(H, W)`` bool: the pixels near a moving object's point (``moving/NAME.npy``, within
-        :data:`MOVING_MASK_RADIUS_FRACTION` of the width), or None when the keyframe has none."""
+        """``(H, W)`` bool: the pixels near a moving object's point (``moving/NAME.npy``;
+        :func:`~slam_bridge.depth_image.moving_pixel_mask`), or None when the keyframe has none."""
         path = self.root / MOVING_DIR / f"{keyframe.name}.npy"
         if not path.is_file():
             return None
-        pixels, _ = nearest_returns(_load_array(path, (None, 3)), self.camera)
-        mask = np.zeros((self.camera.height, self.camera.width), dtype=np.uint8)
-        mask.flat[pixels] = 1
-        radius = max(1, round(MOVING_MASK_RADIUS_FRACTION * self.camera.width))
-        disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
-        return cv2.dilate(mask, disk).astype(bool)
+        return moving_pixel_mask(_load_array(path, (None, 3)), self.camera)
 
     def normals(self, keyframe: Keyframe) -> np.ndarray:
         """``(H, W, 3)`` float32 camera-frame normal prior, zeros where there is none."""

@@ -70,8 +70,8 @@ def test_lidar_depth_agrees_with_ground_truth_depth(gt_scene: Path, quick_room: 
     assert np.mean(errors > 0.10) < 0.01  # occlusion leaks handled
 
 
-def _static_points(scans: list, trajectory) -> list[np.ndarray]:
-    """Each scan's de-skewed world points ``(N, 3)`` without those the see-through test marks."""
+def _static_and_moving_points(scans: list, trajectory) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each scan's de-skewed world points ``(N, 3)`` the see-through test keeps, and those it marks."""
     from rig.dynamic_points import DEFAULT_DYNAMIC, label_dynamic
 
     def sweeps():
@@ -80,29 +80,37 @@ def _static_points(scans: list, trajectory) -> list[np.ndarray]:
             T = trajectory.interpolate(np.array([s.t_host]), clamp=True)[0]
             yield s.t_host * 1e-9, transform_points(invert(T), world), T
 
-    return [view.points_world[~moving] for _, view, moving in label_dynamic(sweeps(), DEFAULT_DYNAMIC)]
+    return [
+        (view.points_world[~moving], view.points_world[moving])
+        for _, view, moving in label_dynamic(sweeps(), DEFAULT_DYNAMIC)
+    ]
 
 
 def test_depth_from_the_stored_points_equals_the_depth_image_lts_prepare_stored_before(
     gt_scene: Path, quick_room: Path, gt_slam_dir: Path
 ) -> None:
-    """Format 1 z-buffered each keyframe's world points (float64) into a depth image; the depth
-    made from the stored float32 camera-frame points is the same, pixel for pixel (both without
-    the points the see-through test calls moving)."""
+    """Format 1 z-buffered each keyframe's window of points into a depth image; the depth made from
+    the stored camera-frame points is the same, pixel for pixel (both without the points the
+    see-through test calls moving, nor the static ones beside those in the image)."""
+    from slam_bridge.keyframe_lidar import in_view, off_moving_pixels
+
     scene = load_scene(gt_scene)
     calibration = load_calibration(quick_room / "ground_truth" / "calib.yaml")
     trajectory = read_tum(gt_slam_dir / "trajectory.tum")
     scans = list(SessionReader(quick_room / "session.mcap").scans("/lidar/points"))
-    static = _static_points(scans, trajectory)
+    labelled = _static_and_moving_points(scans, trajectory)
     offset_ns = round(calibration.time_offset_s * 1e9)
     t = [k.t_ns for k in scene.keyframes]
     margin = int(scene.options.keyframe_interval_s * 1e9)
     for n, keyframe in enumerate(scene.keyframes):
         lo = t[n - 1] if n > 0 else t[n] - margin
         hi = t[n + 1] if n + 1 < len(t) else t[n] + margin
-        world = np.concatenate([static[i] for i, s in enumerate(scans) if lo <= s.t_host + offset_ns <= hi])
+        window = [labelled[i] for i, s in enumerate(scans) if lo <= s.t_host + offset_ns <= hi]
         T_cam_world = invert(keyframe.T_world_cam)
-        before = remove_occluded(zbuffer_depth(transform_points(T_cam_world, world), scene.camera), 7)
+        static = in_view(transform_points(T_cam_world, np.concatenate([w[0] for w in window])), scene.camera)
+        moving = in_view(transform_points(T_cam_world, np.concatenate([w[1] for w in window])), scene.camera)
+        static = off_moving_pixels(static.astype(np.float64), moving, scene.camera)
+        before = remove_occluded(zbuffer_depth(static, scene.camera), 7)
         np.testing.assert_array_equal(scene.depth(keyframe), before)
 
 
@@ -326,6 +334,19 @@ def test_keyframe_lidar_keeps_the_scans_in_each_window_and_the_points_in_view() 
     assert points[0].dtype == np.float32
     np.testing.assert_array_equal(points[0], [[0, 0, 2]])
     np.testing.assert_array_equal(points[1], [[0, 0, 2], [0, 0, 3]])
+
+
+def test_static_points_beside_a_moving_objects_points_are_dropped() -> None:
+    """A return the see-through test missed on a vehicle lies beside the ones it found in the same
+    window: static points within the moving mask's radius (1 % of the width, 3 px here) go."""
+    from slam_bridge.keyframe_lidar import off_moving_pixels
+
+    camera = CameraModel("pinhole", 320, 240, [[300, 0, 159.5], [0, 300, 119.5], [0, 0, 1]], [])
+    moving = np.array([[0.0, 0.0, 10.0]], dtype=np.float32)  # pixel (159.5, 119.5)
+    # 2 px and 4 px to the right of it (at 10 m, 1 px is 3.3 cm), and one on the far side.
+    static = np.array([[2 / 30, 0, 10], [4 / 30, 0, 10], [-1.0, 0.5, 10]], dtype=np.float32)
+    np.testing.assert_array_equal(off_moving_pixels(static, moving, camera), static[1:])
+    np.testing.assert_array_equal(off_moving_pixels(static, moving[:0], camera), static)
 
 
 @pytest.mark.parametrize(
