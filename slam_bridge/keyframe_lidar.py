@@ -39,7 +39,8 @@ MOVING_WINDOW_S = 0.05
 @dataclass(frozen=True)
 class KeyframePoints:
     """Per keyframe (in time order), camera-frame points ``(N, 3)`` float32 in its image: the static
-    ones of every scan in its window, and the moving ones of the sweeps taken with its image."""
+    ones of every scan in its window (less those beside the window's moving ones,
+    :func:`off_moving_pixels`), and the moving ones of the sweeps taken with its image."""
 
     static: list[np.ndarray]
     moving: list[np.ndarray]
@@ -73,9 +74,10 @@ def keyframe_lidar(
     """Per keyframe (in time order), the points in its camera frame of the scans stamped within its
     :func:`keyframe_windows` (on the camera clock), deskewed with the LiDAR ``trajectory`` (host
     clock) and seen by ``camera``, without the points of moving objects
-    (:func:`~rig.dynamic_points.label_dynamic` with ``dynamic``; None keeps them); those
-    are kept apart for the sweeps within :data:`MOVING_WINDOW_S` of the keyframe. Scans are
-    streamed; each is deskewed once."""
+    (:func:`~rig.dynamic_points.label_dynamic` with ``dynamic``; None keeps them) nor the static
+    points beside them in the image (:func:`off_moving_pixels`); the moving points are kept apart
+    for the sweeps within :data:`MOVING_WINDOW_S` of the keyframe. Scans are streamed; each is
+    deskewed once."""
     stamps_ns = np.array([k.t_ns for k in keyframes])
     lo, hi = keyframe_windows(stamps_ns, interval_s)
     lo, hi = lidar_clock(lo, calibration), lidar_clock(hi, calibration)
