@@ -7,8 +7,11 @@ The see-through test misses part of a vehicle (on the virtual street, 43 % of th
 crossing 20-28 m ahead: its lower half, where the range image's 3 x 3 minimum finds the nearer
 road), and such returns, kept as static depth, pulled triangles into a ghost of its path. So a
 static point is also dropped where its pixel lies within the moving mask
-(:func:`~slam_bridge.depth_image.moving_pixel_mask`) of the moving points of its own window's
-sweeps: the missed returns of a vehicle lie beside the found ones of the same sweep."""
+(:func:`~slam_bridge.depth_image.moving_pixel_mask`) of the moving points of its own sweep: the
+missed returns of a vehicle lie beside the found ones of the same sweep. (The moving points of
+all the sweeps of a keyframe's window would mask a vehicle's whole trail: on the 20 s street,
+whose keyframes lie 0.5 s apart, 13 % of the static points instead of 2.9 %, and the mesh the
+cameras see lost 0.015 F.)"""
 
 from __future__ import annotations
 
@@ -39,7 +42,7 @@ MOVING_WINDOW_S = 0.05
 @dataclass(frozen=True)
 class KeyframePoints:
     """Per keyframe (in time order), camera-frame points ``(N, 3)`` float32 in its image: the static
-    ones of every scan in its window (less those beside the window's moving ones,
+    ones of every scan in its window (less those beside the moving ones of the same scan,
     :func:`off_moving_pixels`), and the moving ones of the sweeps taken with its image."""
 
     static: list[np.ndarray]
@@ -75,7 +78,8 @@ def keyframe_lidar(
     :func:`keyframe_windows` (on the camera clock), deskewed with the LiDAR ``trajectory`` (host
     clock) and seen by ``camera``, without the points of moving objects
     (:func:`~rig.dynamic_points.label_dynamic` with ``dynamic``; None keeps them) nor the static
-    points beside them in the image (:func:`off_moving_pixels`); the moving points are kept apart
+    points of the same scan beside them in the image (:func:`off_moving_pixels`); the moving points
+    are kept apart
     for the sweeps within :data:`MOVING_WINDOW_S` of the keyframe. Scans are streamed; each is
     deskewed once."""
     stamps_ns = np.array([k.t_ns for k in keyframes])
@@ -85,7 +89,6 @@ def keyframe_lidar(
     T_cam_world = invert(np.stack([k.T_world_cam for k in keyframes]))
     chunks: list[list[np.ndarray]] = [[] for _ in keyframes]
     moving_chunks: list[list[np.ndarray]] = [[] for _ in keyframes]
-    window_moving_chunks: list[list[np.ndarray]] = [[] for _ in keyframes]
     stamps: list[int] = []  # each sweep's host stamp, by index
 
     def sweeps() -> Iterator[tuple[float, np.ndarray, np.ndarray]]:
@@ -101,20 +104,18 @@ def keyframe_lidar(
         first, stop = np.searchsorted(hi, t_host), np.searchsorted(lo, t_host, side="right")
         for n in range(first, stop):
             in_camera = transform_points(T_cam_world[n], view.points_world)
-            chunks[n].append(in_view(in_camera[~moving], camera))
+            static = in_view(in_camera[~moving], camera)
             if moving.any():
-                window_moving_chunks[n].append(in_view(in_camera[moving], camera))
+                moving_in_view = in_view(in_camera[moving], camera)
+                static = off_moving_pixels(static, moving_in_view, camera)
                 if abs(t_host - image_t[n]) <= MOVING_WINDOW_S * 1e9:
-                    moving_chunks[n].append(window_moving_chunks[n][-1])
+                    moving_chunks[n].append(moving_in_view)
+            chunks[n].append(static)
 
     def joined(parts: list[list[np.ndarray]]) -> list[np.ndarray]:
         return [np.concatenate(c) if c else np.zeros((0, 3), np.float32) for c in parts]
 
-    static = [
-        off_moving_pixels(points, moving, camera)
-        for points, moving in zip(joined(chunks), joined(window_moving_chunks), strict=True)
-    ]
-    return KeyframePoints(static, joined(moving_chunks))
+    return KeyframePoints(joined(chunks), joined(moving_chunks))
 
 
 def off_moving_pixels(static: np.ndarray, moving: np.ndarray, camera: CameraModel) -> np.ndarray:
