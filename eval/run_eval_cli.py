@@ -70,6 +70,12 @@ def evaluate_run_command(
         f"{_text(m['height_error_mean_m'], ' cm', 100, 2)}",
         f"{m['n_triangles']} triangles, trained in {_text(m['train_seconds'], ' s', digits=0)}",
     ]
+    if m["psnr_static"] is not None or m["mover_swept_area_fraction"] is not None:
+        lines.append(
+            f"moving objects: PSNR on the static pixels {_text(m['psnr_static'], ' dB', digits=2)} "
+            f"({_text(m['moving_pixel_fraction'], ' %', 100, 1)} of the pixels show one); mesh area "
+            f"inside their swept volumes {_text(m['mover_swept_area_fraction'], ' %', 100, 2)}"
+        )
     if m["seam_views"] is not None:
         at_seams, elsewhere = (
             _text(m["seam_hole_fraction"], " %", 100, 2),
