@@ -79,9 +79,8 @@ def keyframe_lidar(
     clock) and seen by ``camera``, without the points of moving objects
     (:func:`~rig.dynamic_points.label_dynamic` with ``dynamic``; None keeps them) nor the static
     points of the same scan beside them in the image (:func:`off_moving_pixels`); the moving points
-    are kept apart
-    for the sweeps within :data:`MOVING_WINDOW_S` of the keyframe. Scans are streamed; each is
-    deskewed once."""
+    are kept apart for the sweeps within :data:`MOVING_WINDOW_S` of the keyframe. Scans are
+    streamed; each is deskewed once."""
     stamps_ns = np.array([k.t_ns for k in keyframes])
     lo, hi = keyframe_windows(stamps_ns, interval_s)
     lo, hi = lidar_clock(lo, calibration), lidar_clock(hi, calibration)

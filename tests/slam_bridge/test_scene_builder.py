@@ -342,7 +342,7 @@ def test_keyframe_lidar_keeps_the_scans_in_each_window_and_the_points_in_view() 
 
 def test_static_points_beside_a_moving_objects_points_are_dropped() -> None:
     """A return the see-through test missed on a vehicle lies beside the ones it found in the same
-    window: static points within the moving mask's radius (1 % of the width, 3 px here) go."""
+    scan: static points within the moving mask's radius (1 % of the width, 3 px here) go."""
     from slam_bridge.keyframe_lidar import off_moving_pixels
 
     camera = CameraModel("pinhole", 320, 240, [[300, 0, 159.5], [0, 300, 119.5], [0, 0, 1]], [])
