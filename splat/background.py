@@ -2,22 +2,32 @@
 accumulated opacity below one.
 
 Its colour is a function of the world-space viewing direction ``d`` only (it lies at infinity):
-``sigmoid(Σ_k c_k Y_k(d))`` per RGB channel, with ``Y_k`` the real spherical harmonics up to
-degree ``L`` (``K = (L + 1)²`` coefficients ``c`` ``(K, 3)``, the 3DGS basis and order).
+``sigmoid(Σ_k c_k Y_k(d) + m(d))`` per RGB channel, with ``Y_k`` the real spherical harmonics up to
+degree ``L`` (``(L + 1)²`` coefficients ``c``, the 3DGS basis and order) and ``m`` an optional map:
+the sum of :data:`MAP_LEVELS` equirectangular grids over the directions (azimuth about world z,
+elevation from its horizon), sampled bilinearly. The harmonics are too smooth for a street's sky
+between roofs and for structure beyond the LiDAR's reach; the map holds them (its finest texels
+are 0.7° wide), and its coarse levels fill what the fine ones rarely see. One tensor holds both,
+``(K, 3)``: the harmonics' coefficients, then the map's texels level by level (row-major).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 from torch import Tensor
 
 from rig.camera import CameraModel
 from rig.mesh_rays import pixel_rays
 
 MAX_DEGREE = 3
+#: The map's grids (rows, columns), coarse to fine: 11.25°, 2.8° and 0.7° texels.
+MAP_LEVELS = ((16, 32), (64, 128), (256, 512))
+MAP_TEXELS = sum(rows * columns for rows, columns in MAP_LEVELS)
 _C0 = 0.28209479177387814
 _C1 = 0.4886025119029199
 _C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
@@ -32,18 +42,19 @@ _RAYS_KEPT = 4
 _rays: dict[tuple, tuple[Tensor, Tensor]] = {}
 
 
-def n_coefficients(degree: int) -> int:
-    """``(degree + 1)²``: the coefficients per channel of a degree-``degree`` background."""
-    return (degree + 1) ** 2
+def n_coefficients(degree: int, with_map: bool = False) -> int:
+    """Rows per channel of a background of harmonics of ``degree`` (``(degree + 1)²``), and of
+    the map's :data:`MAP_TEXELS` when ``with_map``."""
+    return (degree + 1) ** 2 + (MAP_TEXELS if with_map else 0)
 
 
-def degree_of(n: int) -> int:
-    """The degree whose background has ``n`` coefficients per channel (ValueError if none does)."""
-    degree = round(n**0.5) - 1
-    if n < 1 or n_coefficients(degree) != n or degree > MAX_DEGREE:
-        allowed = ", ".join(str(n_coefficients(d)) for d in range(MAX_DEGREE + 1))
-        raise ValueError(f"expected {allowed} coefficients per channel, got {n}")
-    return degree
+def layout_of(n: int) -> tuple[int, bool]:
+    """The degree of a background of ``n`` rows per channel and whether a map follows its
+    harmonics (ValueError if no layout has ``n`` rows)."""
+    layouts = {n_coefficients(d, m): (d, m) for d in range(MAX_DEGREE + 1) for m in (False, True)}
+    if n not in layouts:
+        raise ValueError(f"expected {', '.join(map(str, sorted(layouts)))} coefficients per channel, got {n}")
+    return layouts[n]
 
 
 def sh_basis(directions: Tensor, degree: int) -> Tensor:
@@ -68,24 +79,48 @@ def sh_basis(directions: Tensor, degree: int) -> Tensor:
     return torch.stack(basis, dim=-1)
 
 
+def map_values(texels: Tensor, directions: Tensor) -> Tensor:
+    """The map of ``texels`` ``(MAP_TEXELS, 3)`` along unit world ``directions`` ``(N, 3)``: the sum
+    of its levels sampled bilinearly ``(N, 3)``, continuous across azimuth ±180°."""
+    x, y, z = directions.unbind(-1)
+    azimuth = torch.atan2(y, x) / math.pi  # [-1, 1] across each grid's columns
+    elevation = -torch.asin(z.clamp(-1.0, 1.0)) / (math.pi / 2)  # -1: up, the grid's first row
+    values, start = torch.zeros_like(directions), 0
+    for rows, columns in MAP_LEVELS:
+        grid = texels[start : start + rows * columns].T.reshape(1, 3, rows, columns)
+        start += rows * columns
+        # One column more on each side, copied from the other edge: the map closes at azimuth ±180°.
+        wrapped = F.pad(grid, (1, 1, 0, 0), mode="circular")
+        at = torch.stack([azimuth * columns / (columns + 2), elevation], dim=-1).to(grid)
+        sampled = F.grid_sample(wrapped, at[None, None], padding_mode="border", align_corners=False)
+        values = values + sampled[0, :, 0].T
+    return values
+
+
 def background_rgb(coefficients: Tensor, directions: Tensor) -> Tensor:
-    """RGB in (0, 1) ``(N, 3)`` of the background ``coefficients`` ``(K, 3)`` seen along unit world
-    ``directions`` ``(N, 3)``."""
-    basis = sh_basis(directions, degree_of(len(coefficients)))
-    return torch.sigmoid(basis @ coefficients)
+    """RGB in (0, 1) ``(N, 3)`` of the background ``coefficients`` ``(K, 3)`` (harmonics, then the
+    map's texels if any) seen along unit world ``directions`` ``(N, 3)``."""
+    degree, with_map = layout_of(len(coefficients))
+    k = n_coefficients(degree)
+    logits = sh_basis(directions, degree) @ coefficients[:k]
+    if with_map:
+        logits = logits + map_values(coefficients[k:], directions)
+    return torch.sigmoid(logits)
 
 
 def constant_background(
     rgb: Sequence[float] | Tensor,
     degree: int,
     *,
+    with_map: bool = False,
     dtype: torch.dtype = torch.float32,
     device: torch.device | str = "cpu",
 ) -> Tensor:
     """Coefficients ``(K, 3)`` (a leaf that requires grad) of a background of one colour ``rgb``
-    ``(3,)`` in [0, 1] in every direction: only the constant term is set."""
+    ``(3,)`` in [0, 1] in every direction, with a map when ``with_map``: only the constant term is
+    set."""
     rgb = torch.as_tensor(rgb, dtype=torch.float64).clamp(*_INIT_RANGE)
-    coefficients = torch.zeros(n_coefficients(degree), 3, dtype=torch.float64)
+    coefficients = torch.zeros(n_coefficients(degree, with_map), 3, dtype=torch.float64)
     coefficients[0] = torch.logit(rgb) / _C0
     return coefficients.to(device=device, dtype=dtype).requires_grad_(True)
 

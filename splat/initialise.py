@@ -164,7 +164,7 @@ def build_model(
     init: Initialisation, config: TrainConfig, views: list[View], camera, log: Callable[[str], None]
 ) -> TriangleModel:
     """The initial :class:`TriangleModel` on ``config.device`` (colours projected when asked; with
-    ``background: sh``, a background of the views' mean colour)."""
+    a background, one of the views' mean colour)."""
     triangles = torch.as_tensor(init.triangles, dtype=torch.float32)
     colors = (
         torch.full_like(triangles, GREY)
@@ -177,13 +177,15 @@ def build_model(
     if init.colors is None and config.init_color == "project":
         coloured = project_colors(model, views, camera)
         log(f"colours of {coloured} of {model.n_triangles} triangles projected from {len(views)} views")
-    if config.background == "sh":
+    if config.background != "none":
         # The best constant before anything is known: pixels the triangles leave uncovered (or,
         # while they are translucent, partly covered) then start near the images' average.
         rgb = mean_image_color(views)
+        with_map = config.background == "map"
         model.background = constant_background(
-            rgb, config.background_sh_degree, dtype=triangles.dtype, device=config.device
+            rgb, config.background_sh_degree, with_map=with_map, dtype=triangles.dtype, device=config.device
         )
-        log(f"background: degree-{config.background_sh_degree} harmonics, starting at the training images' "
-            f"mean colour ({', '.join(f'{c:.2f}' for c in rgb.tolist())})")  # fmt: skip
+        kind = " and a map down to 0.7°" if with_map else ""
+        log(f"background: degree-{config.background_sh_degree} harmonics{kind}, starting at the training "
+            f"images' mean colour ({', '.join(f'{c:.2f}' for c in rgb.tolist())})")  # fmt: skip
     return model

@@ -10,8 +10,8 @@ be cloned, subdivided and pruned one by one. Parameters (all leaf tensors, rows 
   ``floor + (1 - floor) · sigmoid(logit)`` with the TS+ rising ``opacity_floor`` (1 → opaque).
 
 ``sigma`` (the window sharpness, annealed by the schedule) and ``opacity_floor`` are schedule
-state, not learnt. The optional ``background`` ``(K, 3)`` (spherical-harmonic coefficients, see
-:mod:`splat.background`) is learnt too but is not per triangle, so it is kept out of ``params``
+state, not learnt. The optional ``background`` ``(K, 3)`` (spherical-harmonic coefficients and map texels,
+see :mod:`splat.background`) is learnt too but is not per triangle, so it is kept out of ``params``
 (whose rows densification and pruning edit) and out of the exported meshes.
 """
 
@@ -27,7 +27,7 @@ from torch import Tensor
 from rig.atomic_file import atomic_path
 from rig.camera import CameraModel
 from rig.errors import InputError
-from splat.background import MAX_DEGREE, background_image, background_pixels, n_coefficients
+from splat.background import background_image, background_pixels, layout_of
 from splat.finite import all_finite
 from splat.raster import RenderOutput, render
 
@@ -181,10 +181,13 @@ def _background_from_state(state: dict, device: torch.device | str, path: Path |
         return None
     if not isinstance(background, Tensor):
         raise InputError("expected a tensor", path=path, field="background")
-    sizes = [n_coefficients(degree) for degree in range(MAX_DEGREE + 1)]
-    if background.dim() != 2 or background.shape[1] != 3 or len(background) not in sizes:
+    if background.dim() != 2 or background.shape[1] != 3:
         got = tuple(background.shape)
-        raise InputError(f"expected shape (K, 3) with K in {sizes}, got {got}", path=path, field="background")
+        raise InputError(f"expected shape (K, 3), got {got}", path=path, field="background")
+    try:
+        layout_of(len(background))
+    except ValueError as error:
+        raise InputError(str(error), path=path, field="background") from None
     if not all_finite(background):
         raise InputError("holds NaN or Inf", path=path, field="background")
     return background.to(device).clone().requires_grad_(True)

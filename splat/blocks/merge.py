@@ -5,7 +5,7 @@ Each block keeps the triangles whose centroid lies in its core grown by half its
 seam has its centroid on one side in one block and on the other side in the next, so the plain
 core test would leave a gap of up to half a triangle along every seam. The few duplicates the
 overlap keeps are opaque surfaces drawn twice; the collision mesh's export welds and deduplicates
-them. The background (spherical harmonics of the sky, in world directions) is the blocks'
+them. The background (harmonics and map of the sky, in world directions) is the blocks'
 average weighted by their training keyframes.
 """
 

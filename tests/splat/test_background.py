@@ -1,4 +1,5 @@
-"""The trained background: spherical harmonics, compositing, training, files, and the trainer."""
+"""The trained background: spherical harmonics and the map, compositing, training, files, and the
+trainer."""
 
 from __future__ import annotations
 
@@ -13,7 +14,16 @@ from training_scene import write_training_scene
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.transforms import make_transform
-from splat.background import background_image, background_rgb, camera_rays, constant_background, sh_basis
+from splat.background import (
+    MAP_LEVELS,
+    MAP_TEXELS,
+    background_image,
+    background_rgb,
+    camera_rays,
+    constant_background,
+    map_values,
+    sh_basis,
+)
 from splat.background_mask import above_lidar
 from splat.config import make_config
 from splat.export import export_mesh
@@ -82,6 +92,62 @@ def test_a_constant_background_has_its_colour_everywhere_and_world_directions_fo
     world = axis @ T_CAM_WORLD[:3, :3]
     torch.testing.assert_close(world.mean(0), torch.tensor([0.0, 1.0, 0.0]), atol=0.02, rtol=0)
     torch.testing.assert_close(centre, background_rgb(coefficients, world))
+
+
+def _azimuth_elevation(azimuth_deg: torch.Tensor, elevation_deg: torch.Tensor) -> torch.Tensor:
+    a, e = torch.deg2rad(azimuth_deg.double()), torch.deg2rad(elevation_deg.double())
+    return torch.stack([torch.cos(e) * torch.cos(a), torch.cos(e) * torch.sin(a), torch.sin(e)], dim=-1)
+
+
+def test_the_map_adds_to_the_harmonics_and_closes_around_the_pole():
+    directions = torch.nn.functional.normalize(torch.randn(50, 3, dtype=torch.float64), dim=1)
+    harmonics = constant_background([0.2, 0.5, 0.9], 2).detach().double()
+    plain = background_rgb(harmonics, directions)
+    with_map = constant_background([0.2, 0.5, 0.9], 2, with_map=True).detach().double()
+    assert with_map.shape == (9 + MAP_TEXELS, 3)
+    torch.testing.assert_close(background_rgb(with_map, directions), plain)  # an empty map adds nothing
+
+    texels = torch.randn(MAP_TEXELS, 3, dtype=torch.float64)
+    # Either side of azimuth ±180° (the grids' left and right edges) lies the same colour.
+    elevation = torch.linspace(-60, 60, 7)
+    west = map_values(texels, _azimuth_elevation(torch.full((7,), 180.0), elevation))
+    east = map_values(texels, _azimuth_elevation(torch.full((7,), -180.0), elevation))
+    torch.testing.assert_close(west, east)
+    # A texel's centre shows its value plus the coarser levels' (bilinear: the finest level's
+    # texel centre, here one where the coarse grids are zero).
+    rows, columns = MAP_LEVELS[-1]
+    texels = torch.zeros(MAP_TEXELS, 3, dtype=torch.float64, requires_grad=True)
+    row, column = 100, 300
+    centre = _azimuth_elevation(
+        torch.tensor([-180 + (column + 0.5) * 360 / columns]), torch.tensor([90 - (row + 0.5) * 180 / rows])
+    )
+    start = MAP_TEXELS - rows * columns
+    with torch.no_grad():
+        texels[start + row * columns + column] = torch.tensor([1.0, -2.0, 3.0])
+    value = map_values(texels, centre)
+    torch.testing.assert_close(value[0], torch.tensor([1.0, -2.0, 3.0], dtype=torch.float64))
+    value.sum().backward()
+    assert float(texels.grad[start + row * columns + column].sum()) == pytest.approx(3.0)
+
+
+def test_the_map_learns_a_roofline_the_harmonics_blur():
+    # Sky above a skyline that steps from 10° to 30° high at azimuth 90°: a sharp edge.
+    grid = torch.meshgrid(torch.linspace(60, 120, 120), torch.linspace(0, 50, 100), indexing="ij")
+    azimuth, elevation = (angle.reshape(-1) for angle in grid)
+    directions = _azimuth_elevation(azimuth, elevation).float()
+    sky, brick = torch.tensor([0.6, 0.75, 0.95]), torch.tensor([0.6, 0.3, 0.2])
+    target = torch.where((elevation > torch.where(azimuth < 90, 10.0, 30.0))[:, None], sky, brick)
+    errors = {}
+    for with_map in (False, True):
+        background = constant_background([0.5, 0.5, 0.5], 2, with_map=with_map)
+        optimizer = torch.optim.Adam([background], lr=make_config().lr_background, eps=1e-15)
+        for _ in range(150):
+            loss = (background_rgb(background, directions) - target).abs().mean()
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+        errors[with_map] = float((background_rgb(background.detach(), directions) - target).abs().mean())
+    assert errors[True] < 0.3 * errors[False], errors
 
 
 def test_pixels_the_camera_cannot_back_project_get_no_background():
@@ -157,9 +223,15 @@ def test_models_round_trip_with_and_without_a_background(tmp_path):
     assert loaded.background.is_leaf and loaded.background.requires_grad
     torch.testing.assert_close(loaded.render(CAMERA, T_CAM_WORLD).rgb, model.render(CAMERA, T_CAM_WORLD).rgb)
 
+    model.background = constant_background([0.4, 0.5, 0.6], 2, with_map=True)
+    save_model(model, tmp_path / "map.pt")
+    torch.testing.assert_close(
+        load_model(tmp_path / "map.pt").render(CAMERA, T_CAM_WORLD).rgb, model.render(CAMERA, T_CAM_WORLD).rgb
+    )
+
     state = model.to_state()
-    for bad, message in ((torch.zeros(5, 3), "K in"), (torch.zeros(9), "K in"), ("sky", "tensor"),
-                         (torch.full((4, 3), math.nan), "NaN")):  # fmt: skip
+    for bad, message in ((torch.zeros(5, 3), "coefficients per channel"), (torch.zeros(9), "shape"),
+                         ("sky", "tensor"), (torch.full((4, 3), math.nan), "NaN")):  # fmt: skip
         with pytest.raises(InputError, match=message) as error:
             TriangleModel.from_state({**state, "background": bad}, path=tmp_path / "m.pt")
         assert error.value.field == "background"
@@ -185,7 +257,7 @@ def scene_dir(tmp_path_factory):
     return write_training_scene(tmp_path_factory.mktemp("scene"))
 
 
-@pytest.mark.parametrize("background", ["sh", "none"])
+@pytest.mark.parametrize("background", ["map", "sh", "none"])
 def test_training_with_and_without_a_background_exports_only_the_triangles(scene_dir, tmp_path, background):
     config = make_config(
         iterations=30, densify_every=10, densify_until=0.5, eval_every=10, checkpoint_every=10,
@@ -196,8 +268,9 @@ def test_training_with_and_without_a_background_exports_only_the_triangles(scene
     masks = [view.background_mask for view in trainer.train_views]
     result = trainer.run(progress=False)
     model = load_model(tmp_path / "run" / "model.pt")
-    if background == "sh":
-        assert model.background.shape == (9, 3) and bool(torch.isfinite(model.background).all())
+    if background != "none":
+        rows = 9 + (MAP_TEXELS if background == "map" else 0)
+        assert model.background.shape == (rows, 3) and bool(torch.isfinite(model.background).all())
         # Beyond the corner's walls (the black top right of the views) is above every return.
         assert all(0 < int(mask.sum()) < mask.numel() for mask in masks)
     else:
