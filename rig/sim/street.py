@@ -3,7 +3,8 @@
 World frame: z up, metres; the street runs along x. Four 3.5 m lanes (y from -7 to 7; the ego
 car drives in the lane at y = -1.75 towards +x), 15 cm kerbs to 4 m pavements, building blocks
 6–18 m high behind them with a cross street at x = 32–46, an overpass at x = 70–76, trees whose
-crowns and lamp posts whose tops rise above a roof LiDAR's top beam, and open sky.
+crowns and lamp posts whose tops rise above a roof LiDAR's top beam, ground between and behind the
+blocks, and open sky (beyond the street's ends too).
 
 Traffic (:func:`street_traffic`): a car ahead and one behind at the ego car's speed, a lorry in
 the next lane slowly overtaking it, two oncoming cars and one crossing at the side street.
@@ -23,6 +24,8 @@ SIDE_STREET_X = (32.0, 46.0)
 OVERPASS_X = (70.0, 76.0)
 #: The street's extent along x (m).
 STREET_X = (-40.0, 150.0)
+#: The ground reaches this far either side of the street's axis (m): past the side street's ends.
+GROUND_HALF_WIDTH = 60.0
 #: The ego car's lane centre and speed (m/s).
 EGO_LANE_Y = -1.75
 EGO_SPEED_MPS = 3.0
@@ -73,6 +76,9 @@ def street(rng: np.random.Generator) -> SceneMesh:
     length, centre = STREET_X[1] - STREET_X[0], sum(STREET_X) / 2
     side_width, side_centre = SIDE_STREET_X[1] - SIDE_STREET_X[0], sum(SIDE_STREET_X) / 2
     parts = [
+        # Ground under everything, a centimetre below the road: seen between the building blocks
+        # (without it the camera saw the sky below the horizon through every gap).
+        box((length, 2 * GROUND_HALF_WIDTH, 0.2), (centre, 0.0, -0.11), "concrete"),
         box((length, 14.0, 0.2), (centre, 0.0, -0.1), "asphalt"),
         # the side street, a hair lower where it overlaps the street
         box((side_width, 100.0, 0.2), (side_centre, 0.0, -0.1001), "asphalt"),

@@ -86,6 +86,17 @@ def test_the_camera_sees_sky_and_what_is_above_the_lidar_field(street_run) -> No
     assert np.linalg.norm(scan.points, axis=1).max() > 40.0  # far returns along the street
 
 
+def test_below_the_horizon_the_camera_sees_the_ground_not_the_sky(street_run) -> None:
+    # Between the building blocks and behind them lies ground; only beyond the street's far end
+    # (150 m ahead: 0.7° below the horizon) does the sky reach below it.
+    camera = CameraSimulator(street_run.config.camera())
+    for t in np.arange(0.0, 3.0, 0.25):
+        T_world_cam = street_run.motion.poses(np.array([t]))[0]
+        _, depth = camera.render(street_run.world, T_world_cam, t)
+        down = (camera.directions @ T_world_cam[:3, :3].T)[:, 2].reshape(depth.shape)
+        assert not np.isnan(depth[down < -np.sin(np.radians(1.0))]).any(), t
+
+
 def test_the_lidar_sees_the_traffic_at_its_own_time(street_run) -> None:
     world, run = street_run.world, street_run
     scan = simulate_scan(world, run.motion, run.lidar, run.T_cam_lidar, 2.0, np.random.default_rng(0))
