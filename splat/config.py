@@ -123,7 +123,7 @@ class TrainConfig(BaseModel):
     )
 
     # Background: what the camera sees beyond the triangles (sky, structure above the LiDAR's field).
-    # On the 8 s street the map took the test PSNR above the LiDAR's field 21.5 -> 22.3 dB
+    # On the 8 s street the map took the test PSNR above the LiDAR's field 21.5 -> 22.4 dB
     # (docs/outdoor.md, "A map of the sky").
     background: Literal["map", "sh", "none"] = Field(
         "map",
