@@ -99,7 +99,7 @@ def _azimuth_elevation(azimuth_deg: torch.Tensor, elevation_deg: torch.Tensor) -
     return torch.stack([torch.cos(e) * torch.cos(a), torch.cos(e) * torch.sin(a), torch.sin(e)], dim=-1)
 
 
-def test_the_map_adds_to_the_harmonics_and_closes_around_the_pole():
+def test_the_map_adds_to_the_harmonics_and_closes_at_azimuth_180():
     directions = torch.nn.functional.normalize(torch.randn(50, 3, dtype=torch.float64), dim=1)
     harmonics = constant_background([0.2, 0.5, 0.9], 2).detach().double()
     plain = background_rgb(harmonics, directions)
