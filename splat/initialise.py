@@ -97,7 +97,8 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         known = (
             np.concatenate([lidar, extension.triangles.mean(axis=1)]) if config.upward_extension else lidar
         )
-        cells = swept_cells(scene.camera, images, poses, depths, sweeps, known)
+        planes = extension.planes if config.upward_extension else None
+        cells = swept_cells(scene.camera, images, poses, depths, sweeps, known, planes)
         notes.append(cells.reason)
         triangles = np.concatenate([triangles, _scaled(cells.triangles, config.init_scale)])
         colors = None if colors is None else np.concatenate([colors, cells.colors])

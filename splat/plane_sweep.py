@@ -30,6 +30,7 @@ from scipy.spatial import cKDTree
 from rig.camera import CameraModel
 from splat.background_mask import above_lidar
 from splat.camera_only import one_per_grid_square, quad_triangles, seen_through, unexplained_points
+from splat.upright_planes import UprightPlanes, snap_to_planes
 
 #: Depth hypotheses of the sweep, uniform in inverse depth between these (m).
 SWEEP_PLANES = 96
@@ -55,12 +56,14 @@ AGREE_FRACTION = 0.05
 class SweptCells:
     """Two triangles per cell ``(2C, 3, 3)`` and their colours ``(2C, 3, 3)`` in [0, 1] where plane-sweep
     stereo found a surface above the LiDAR's reach; ``n_matched`` depths before the checks between
-    keyframes, ``n_references`` keyframes swept."""
+    keyframes, ``n_references`` keyframes swept, ``n_snapped`` cells moved onto an upright surface
+    the LiDAR touched (:mod:`splat.upright_planes`)."""
 
     triangles: np.ndarray
     colors: np.ndarray
     n_matched: int
     n_references: int
+    n_snapped: int = 0
 
     @property
     def reason(self) -> str:
@@ -73,7 +76,8 @@ class SweptCells:
             f"{len(self.triangles) // 2} camera-only cells from plane-sweep stereo above the LiDAR's reach "
             f"({self.n_matched} confident depths, one per {CELL_PX} x {CELL_PX} pixels, in "
             f"{self.n_references} keyframes; "
-            "kept where another keyframe agrees and no LiDAR return explains or sees through them)"
+            "kept where another keyframe agrees and no LiDAR return explains or sees through them; "
+            f"{self.n_snapped} moved onto the plane of an upright surface the LiDAR touched below them)"
         )
 
 
@@ -219,12 +223,15 @@ def swept_cells(
     depths: list[np.ndarray],
     sweeps: list[np.ndarray | None],
     known: np.ndarray,
+    planes: UprightPlanes | None = None,
 ) -> SweptCells:
     """Camera-only cells where the keyframes' :func:`keyframe_sweeps` ``sweeps`` (RGB ``images``
     ``(H, W, 3)`` uint8 at ``poses_world_cam`` ``(K, 4, 4)``, LiDAR depth images ``depths``
     ``(H, W)``, 0 = no return) found a surface that another keyframe agrees with, that none of the
     ``known`` points ``(M, 3)`` (LiDAR returns, cells already made) explains
-    (:func:`splat.camera_only.unexplained_points`) and that the LiDAR does not see through."""
+    (:func:`splat.camera_only.unexplained_points`) and that the LiDAR does not see through; each
+    moved onto the nearest of the upright ``planes`` within :data:`AGREE_FRACTION` of its depth
+    (:func:`splat.upright_planes.snap_to_planes`), when given."""
     empty = SweptCells(np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), 0, 0)
     centres = poses_world_cam[:, :3, 3]
     points, quads, colors, owner = [], [], [], []
@@ -254,10 +261,14 @@ def swept_cells(
     agreed = np.array([np.any(owner[list(near)] != own) for near, own in zip(neighbours, owner, strict=True)])
     keep = agreed & unexplained_points(points, known, centres)
     keep[keep] = ~seen_through(points[keep], camera, poses_world_cam, depths)
-    points, quads, colors = points[keep], quads[keep], colors[keep]
+    points, quads, colors, owner = points[keep], quads[keep], colors[keep], owner[keep]
+    snapped = np.zeros(len(points), dtype=bool)
+    if planes is not None:
+        quads, snapped = snap_to_planes(quads, centres[owner], planes, AGREE_FRACTION)
+        points = quads.mean(axis=1)
     if len(points):
         side = np.linalg.norm(quads[:, 1] - quads[:, 0], axis=1)
         first = one_per_grid_square(points, float(np.median(side)))
-        quads, colors = quads[first], colors[first]
+        quads, colors, snapped = quads[first], colors[first], snapped[first]
     rgb = np.repeat(np.concatenate([colors, colors])[:, None, :], 3, axis=1)
-    return SweptCells(quad_triangles(quads), rgb, n_matched, n_references)
+    return SweptCells(quad_triangles(quads), rgb, n_matched, n_references, int(snapped.sum()))

@@ -27,6 +27,7 @@ from rig.mesh_rays import cast_world_rays, mesh_raycaster
 from slam_bridge.scene import KeyframeLidar
 from splat.camera_only import one_per_grid_square, quad_triangles, seen_through
 from splat.plane_sweep import AGREE_FRACTION
+from splat.upright_planes import UprightPlanes
 
 #: Image columns are grouped this many pixels wide; each group's topmost return starts one strip,
 #: whose cells are as wide as the group at the return's depth.
@@ -48,11 +49,13 @@ PLANARITY = 0.1
 @dataclass(frozen=True)
 class UpwardExtension:
     """Two triangles per cell ``(2C, 3, 3)`` continuing ``n_strips`` upright surfaces above the
-    LiDAR's reach, ``n_seen_through`` cells dropped because the LiDAR sees through them."""
+    LiDAR's reach, ``n_seen_through`` cells dropped because the LiDAR sees through them, and the
+    surfaces' ``planes`` (one per strip, however many of its cells were kept)."""
 
     triangles: np.ndarray
     n_strips: int
     n_seen_through: int
+    planes: UprightPlanes
 
     @property
     def reason(self) -> str:
@@ -176,7 +179,7 @@ def upward_extension(
     keyframe's images confirm (:func:`confirmed_cells`): where a wall ends below the sky or a
     farther building, the cells above no longer match. Returns two triangles a cell."""
     raycaster = mesh_raycaster(warm_start)
-    cells, sizes, n_strips = [], [], 0
+    cells, sizes, plane_points, plane_along = [], [], [], []
     for index, (T_world_cam, lidar) in enumerate(zip(poses_world_cam, lidars, strict=True)):
         up_cam = T_world_cam[:3, :3].T @ up
         points, along = topmost_upright_returns(lidar, camera, up_cam)
@@ -185,6 +188,8 @@ def upward_extension(
         rises = rise_to_image_top(points, up_cam, camera)
         world = points @ T_world_cam[:3, :3].T + T_world_cam[:3, 3]
         along_world = along @ T_world_cam[:3, :3].T
+        plane_points.append(world)
+        plane_along.append(along_world)
         for point, direction, rise, z in zip(world, along_world, rises, points[:, 2], strict=True):
             size = COLUMN_PX * z / camera.fx
             strip = _strip_cells(point, direction, up, size, rise)
@@ -194,12 +199,13 @@ def upward_extension(
             strip = strip[_in_sight(raycaster, T_world_cam[:3, 3], strip.mean(axis=1), size)]
             cells.append(strip)
             sizes.append(np.full(len(strip), size))
-            n_strips += 1
+    none = np.zeros((0, 3))
+    planes = UprightPlanes(np.concatenate([none, *plane_points]), np.concatenate([none, *plane_along]), up)
     if not cells:
-        return UpwardExtension(np.zeros((0, 3, 3)), 0, 0)
+        return UpwardExtension(np.zeros((0, 3, 3)), 0, 0, planes)
     quads, side = np.concatenate(cells), np.concatenate(sizes)
     centres = quads.mean(axis=1)
     kept = one_per_grid_square(centres, float(np.median(side)))
     quads, centres = quads[kept], centres[kept]
     through = seen_through(centres, camera, poses_world_cam, [lidar.depth() for lidar in lidars])
-    return UpwardExtension(quad_triangles(quads[~through]), n_strips, int(through.sum()))
+    return UpwardExtension(quad_triangles(quads[~through]), len(planes.points), int(through.sum()), planes)

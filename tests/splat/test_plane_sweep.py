@@ -16,6 +16,7 @@ from splat.plane_sweep import (
     sweep_depth,
     swept_cells,
 )
+from splat.upright_planes import UprightPlanes
 
 CAMERA = CameraModel("pinhole", 160, 96, [[120, 0, 79.5], [0, 120, 47.5], [0, 0, 1]], [])
 WALL_Z = 12.0
@@ -92,3 +93,24 @@ def test_cells_lie_on_the_wall_and_none_where_the_lidar_explains_it_or_a_pixel_m
     masked = keyframe_sweeps(CAMERA, images, poses, no_returns, [everything] * len(centres))
     assert masked == [None] * len(centres)
     assert len(swept_cells(CAMERA, images, poses, no_returns, masked, np.zeros((0, 3))).triangles) == 0
+
+
+def test_cells_near_a_plane_the_lidar_measured_move_onto_it() -> None:
+    texture = _texture(2)
+    centres = [np.array([x, 0.0, 0.0]) for x in (-3.0, -1.5, 0.0, 1.5, 3.0)]
+    images = [_wall_image(texture, c) for c in centres]
+    poses = np.stack([_pose(c) for c in centres])
+    no_returns = [np.zeros((CAMERA.height, CAMERA.width), np.float32)] * len(centres)
+    sweeps = keyframe_sweeps(CAMERA, images, poses, no_returns, [None] * len(centres))
+
+    # The LiDAR's plane of the wall, 2 % behind where stereo puts it, measured every 2 m across it.
+    measured = WALL_Z * 1.02
+    xs = np.arange(-10.0, 10.5, 2.0)
+    planes = UprightPlanes(
+        np.column_stack([xs, np.zeros_like(xs), np.full_like(xs, measured)]),
+        np.tile([1.0, 0.0, 0.0], (len(xs), 1)),
+        np.array([0.0, -1.0, 0.0]),  # up is -y in these cameras
+    )
+    cells = swept_cells(CAMERA, images, poses, no_returns, sweeps, np.zeros((0, 3)), planes)
+    assert len(cells.triangles) > 100 and cells.n_snapped == len(cells.triangles) // 2
+    np.testing.assert_allclose(cells.triangles[..., 2], measured, rtol=1e-9)

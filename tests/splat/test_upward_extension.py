@@ -51,6 +51,11 @@ def test_a_wall_cut_by_the_lidar_is_continued_in_its_plane_to_the_image_top():
     lowest_return = 1.6 - 10.0 * (30 - 23.5) / 40.0
     assert corners[:, 2].min() < lowest_return  # the strips overlap the LiDAR's part of the wall
 
+    # The wall's plane goes with it, for the plane sweep's cells (one per strip).
+    assert len(extension.planes.points) == extension.n_strips >= CAMERA.width // COLUMN_PX
+    np.testing.assert_allclose(extension.planes.points[:, 0], 10.0, atol=1e-5)
+    np.testing.assert_allclose(np.abs(extension.planes.normals[:, 0]), 1.0, atol=1e-6)
+
 
 def test_the_road_is_not_continued_upwards():
     lidar = _road_returns()
