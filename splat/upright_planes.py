@@ -6,8 +6,8 @@ same facade's plane to centimetres where its top beam touched it, and facades ri
 A swept cell whose depth lies within :data:`~splat.plane_sweep.AGREE_FRACTION` of such a plane,
 near where the plane was measured, is moved onto it: its corners slide along their pixel rays,
 so it still covers the same pixels of its keyframe. On the virtual street this puts 70 % of the
-snapped cells within 10 cm of the truth instead of 25 %. A tree or a sign a little in front of
-a facade is snapped onto the facade too; its stereo depth was no better.
+snapped cells within 10 cm of the truth instead of 25 %. A tree or a sign standing within 5 % of a
+facade's depth in front of it is snapped onto the facade too.
 """
 
 from __future__ import annotations
