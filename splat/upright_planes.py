@@ -13,6 +13,7 @@ facade's depth in front of it is snapped onto the facade too.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -34,9 +35,9 @@ class UprightPlanes:
     along: np.ndarray
     up: np.ndarray
 
-    @property
+    @cached_property
     def normals(self) -> np.ndarray:
-        """``(P, 3)`` unit normals (horizontal)."""
+        """``(P, 3)`` unit normals (horizontal), computed once for matching and moving the cells."""
         normals = np.cross(self.along, self.up)
         return normals / np.linalg.norm(normals, axis=1, keepdims=True)
 
