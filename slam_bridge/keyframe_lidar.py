@@ -3,10 +3,10 @@ trajectory, without the points of moving objects, moved into its camera frame an
 project into the image; and, apart, the points of moving objects that the sweeps taken with its
 image hold (training masks their pixels out of the photometric loss).
 
-The see-through test misses part of a vehicle (on the virtual street, 43 % of the returns of a car
-crossing 20-28 m ahead: its lower half, where the range image's 3 x 3 minimum finds the nearer
-road), and such returns, kept as static depth, pulled triangles into a ghost of its path. So a
-static point is also dropped where its pixel lies within the moving mask
+Returns of a vehicle the see-through test misses, kept as static depth, pull triangles into a ghost
+of its path. The test grows its mask within each sweep (:func:`~rig.dynamic_points.grown`: the
+lower half of a car, where the range image's 3 x 3 minimum finds the nearer road), and a static
+point is also dropped where its pixel lies within the moving mask
 (:func:`~slam_bridge.depth_image.moving_pixel_mask`) of the moving points of its own sweep: the
 missed returns of a vehicle lie beside the found ones of the same sweep. (The moving points of
 all the sweeps of a keyframe's window would mask a vehicle's whole trail: on the 20 s street,

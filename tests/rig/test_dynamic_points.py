@@ -21,9 +21,12 @@ def _scene() -> tuple[trimesh.Trimesh, Mover]:
     return trimesh.util.concatenate([ground, wall]), mover
 
 
-def _sweep(caster: MovingRaycaster, t: float, xy: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Sensor-frame points ``(N, 3)`` of a 32-beam sweep from 1.7 m up, and their world points."""
-    elevation, azimuth = np.meshgrid(np.radians(np.linspace(-25, 5, 32)), np.radians(np.arange(0, 360, 0.4)))
+def _sweep(
+    caster: MovingRaycaster, t: float, xy: tuple[float, float], beams: tuple[float, float, int] = (-25, 5, 32)
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor-frame points ``(N, 3)`` of a sweep from 1.7 m up (``beams``: lowest and highest
+    elevation in degrees, count), and their world points."""
+    elevation, azimuth = np.meshgrid(np.radians(np.linspace(*beams)), np.radians(np.arange(0, 360, 0.4)))
     d = np.column_stack(
         [(np.cos(elevation) * np.cos(azimuth)).ravel(), (np.cos(elevation) * np.sin(azimuth)).ravel(),
          np.sin(elevation).ravel()]
@@ -34,15 +37,17 @@ def _sweep(caster: MovingRaycaster, t: float, xy: tuple[float, float]) -> tuple[
     return d[ok] * hits.distance[ok, None], hits.points[ok]
 
 
-def test_a_passing_car_is_seen_through_and_the_street_is_not() -> None:
-    static, car = _scene()
+def _dynamic_at_2s(
+    static: trimesh.Trimesh, car: Mover, config: DynamicConfig, beams: tuple[float, float, int] = (-25, 5, 32)
+) -> tuple[np.ndarray, np.ndarray]:
+    """The dynamic mask ``(N,)`` of the sweep at t = 2 s of a sensor driving along x at 1 m/s,
+    sweeping every 0.5 s, and which of its points ``(N,)`` lie on the car."""
     caster = MovingRaycaster(static, (car,))
-    config = DynamicConfig()
     times = np.arange(0.0, 4.01, 0.5)
     views, world = [], []
     for t in times:
-        xy = (1.0 * t, 0.0)  # the sensor drives at 1 m/s
-        sensor, points = _sweep(caster, t, xy)
+        xy = (1.0 * t, 0.0)
+        sensor, points = _sweep(caster, t, xy, beams)
         T = np.eye(4)
         T[:2, 3] = xy
         views.append(sweep_view(float(t), sensor, T, config))
@@ -50,10 +55,32 @@ def test_a_passing_car_is_seen_through_and_the_street_is_not() -> None:
     index = 4  # t = 2 s: compared with 0, 1, 1.5, 2.5, 3 and 4 s
     assert comparison_sweeps(index, times, config) == [3, 5, 2, 6, 0, 8]
     others = [views[j] for j in comparison_sweeps(index, times, config)]
-    dynamic = dynamic_mask(views[index], others, config)
-    on_car = inside_movers(world[index], (car,), np.array([2.0]), 0.05)
+    return dynamic_mask(views[index], others, config), inside_movers(
+        world[index], (car,), np.array([2.0]), 0.05
+    )
+
+
+def test_a_passing_car_is_seen_through_and_the_street_is_not() -> None:
+    dynamic, on_car = _dynamic_at_2s(*_scene(), DynamicConfig())
     assert on_car.sum() > 100
     assert dynamic[on_car].mean() > 0.9
+    assert dynamic[~on_car].mean() < 0.005
+
+
+def test_the_lower_half_of_a_far_car_is_grown_from_its_upper_half_not_into_the_road() -> None:
+    """A car crossing 24 m ahead, its body 0.3-1.5 m above the road, seen by 64 beams from -24.8 to
+    +2 degrees: below its points the next beam meets the road within the margin, so the
+    see-through test alone misses its lower part; growing the mask in the sweep finds it."""
+    static, _ = _scene()
+    body = trimesh.creation.box(extents=(4.3, 1.8, 1.2))
+    body.apply_translation((0.0, 0.0, 0.9))
+    car = Mover("car", body, np.zeros(len(body.faces), dtype=np.int64), (26.0, -10.0), (0.0, 4.0))
+    beams = (-24.8, 2.0, 64)
+    seen_through, on_car = _dynamic_at_2s(static, car, DynamicConfig(grow_m=0.0), beams)
+    dynamic, on_car = _dynamic_at_2s(static, car, DynamicConfig(), beams)
+    assert on_car.sum() > 100
+    assert seen_through[on_car].mean() < 0.8
+    assert dynamic[on_car].mean() > 0.97
     assert dynamic[~on_car].mean() < 0.005
 
 
