@@ -104,6 +104,21 @@ class PlaneGrid:
         return triangles
 
 
+def range_scaled_cells(
+    plane: np.ndarray, cell_m: float, near_m: float, points: np.ndarray, ranges: np.ndarray
+) -> np.ndarray:
+    """Two triangles per floor cell ``(2C, 3, 3)`` that the floor points ``(N, 3)`` seen from
+    ``ranges`` ``(N,)`` metres land in: cells of ``cell_m`` within ``near_m`` and twice as large
+    each time the range doubles beyond it (a pixel's footprint on the floor grows faster still;
+    cells of one size out to 80 m would be tens of thousands of triangles of a few pixels each)."""
+    octave = np.maximum(np.ceil(np.log2(np.maximum(ranges, 1e-9) / near_m)), 0).astype(np.int64)
+    parts = [np.zeros((0, 3, 3))]
+    for k in np.unique(octave):
+        grid = PlaneGrid(plane, cell_m * 2.0**k)
+        parts.append(grid.triangles(np.unique(grid.cells(points[octave == k]), axis=0)))
+    return np.concatenate(parts)
+
+
 class ReturnColumns:
     """The LiDAR returns over the floor grid as columns: the lowest and the highest return between
     :data:`FLOOR_CLEARANCE_M` and :data:`WALL_HEIGHT_M` above each cell (not the floor itself, not

@@ -14,11 +14,18 @@ from dataclasses import dataclass
 
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
 from rig.camera import CameraModel
 from rig.mesh_rays import cast_camera_rays, mesh_raycaster
 from rig.plane_fit import ransac_plane
-from splat.floor_cells import PlaneGrid, ReturnColumns, enclosed_hidden_cells
+from splat.floor_cells import (
+    GROUND_BAND_M,
+    PlaneGrid,
+    ReturnColumns,
+    enclosed_hidden_cells,
+    range_scaled_cells,
+)
 
 
 def decouple_and_scale(vertices: np.ndarray, faces: np.ndarray, scale: float = 2.0) -> np.ndarray:
@@ -175,8 +182,11 @@ def ground_fill(
 
     Rays of every ``pixel_stride``-th pixel of each view (``poses_world_cam`` ``(K, 4, 4)``) that
     hit no warm-start face before the floor plane are intersected with it (within
-    ``max_range_m``), unless a wall stands between the camera and the point; each grid cell of
-    ``cell_m`` they land in becomes two triangles. Where the wall between is in the LiDAR returns
+    ``max_range_m``, or as far as the LiDAR returns on the floor reach), unless a wall stands
+    between the camera and the point; each grid cell they land in becomes two triangles: cells of
+    ``cell_m`` within ``max_range_m`` and coarser beyond (:func:`range_scaled_cells`). A street's
+    road beyond 40 m lies between the rings of a spinning LiDAR, too far apart for the warm
+    start's surface to bridge. Where the wall between is in the LiDAR returns
     only (a hole of the mesh), an upright ``cell_m`` square closes the hole where the sight line
     meets the returns. ``lidar`` ``(N, 3)``: the returns the plane is fitted to and the walls are
     found in (without them, the mesh's faces alone). With ``complete_hidden``, the floor no camera
@@ -197,7 +207,8 @@ def ground_fill(
     n, d = plane[:3], plane[3]
     grid = PlaneGrid(plane, cell_m)
     columns = ReturnColumns(grid, lidar) if lidar is not None else None
-    hits, crossings, cameras = [], [], []
+    reach = max(max_range_m, floor_reach(grid, lidar, poses_world_cam[:, :3, 3]))
+    hits, ranges, crossings, cameras = [], [], [], []
     for pose in poses_world_cam:
         origin = pose[:3, 3]
         dirs = rays_cam @ pose[:3, :3].T
@@ -205,33 +216,51 @@ def ground_fill(
         denom = dirs @ n
         with np.errstate(divide="ignore", invalid="ignore"):
             t_floor = -(origin @ n + d) / denom
-        through_hole = (denom < -1e-3) & (t_floor > 0) & (t_floor < max_range_m) & (t_mesh > t_floor + cell_m)
-        points = origin + t_floor[through_hole, None] * dirs[through_hole]
+        through_hole = (denom < -1e-3) & (t_floor > 0) & (t_floor < reach) & (t_mesh > t_floor + cell_m)
+        points, t = origin + t_floor[through_hole, None] * dirs[through_hole], t_floor[through_hole]
         behind = _behind_wall(scene, origin, points, n, cell_m)
         if columns is not None:
             crossed, at = columns.first_crossing(origin, points, cell_m)
             behind |= crossed
-            crossings.append(at[crossed])
-            cameras.append(np.broadcast_to(origin, at[crossed].shape))
+            walled = crossed & (t < max_range_m)  # far, a column of returns is a pole or a trunk
+            crossings.append(at[walled])
+            cameras.append(np.broadcast_to(origin, at[walled].shape))
         hits.append(points[~behind])
+        ranges.append(t[~behind])
     points = np.concatenate(hits) if hits else np.zeros((0, 3))
+    ranges = np.concatenate(ranges) if ranges else np.zeros(0)
     walls = _wall_patches(grid, np.concatenate(crossings), np.concatenate(cameras)) if crossings else empty
-    seen = np.unique(grid.cells(points), axis=0) if len(points) else np.zeros((0, 2), dtype=np.int64)
+    near = points[ranges < max_range_m]
+    seen = np.unique(grid.cells(near), axis=0) if len(near) else np.zeros((0, 2), dtype=np.int64)
+    floor = range_scaled_cells(plane, cell_m, max_range_m, points, ranges)
     hidden = seen[:0]
     if complete_hidden:
         enclosing = mesh if enclosing is None else enclosing
         hidden = enclosed_hidden_cells(enclosing, grid, seen, closing_m, lidar=lidar)
     hidden = hidden[grid.near(hidden, poses_world_cam[:, :3, 3], max_range_m)]
+    far = len(floor) // 2 - len(seen)
     reason = (
         f"{len(seen)} floor cells of {cell_m:g} m added under mesh holes the cameras see through"
-        if len(seen)
+        + (f", and {far} coarser ones beyond {max_range_m:g} m (to {reach:.0f} m)" if far else "")
+        if len(floor)
         else "the warm-start mesh covers the floor the cameras see"
     )
     if len(walls):
         reason += f"; {len(walls) // 2} upright {cell_m:g} m patches where LiDAR returns close those holes"
     if complete_hidden:
         reason += f"; {len(hidden)} hidden floor cells completed where walls and objects enclose them"
-    return GroundFill(np.concatenate([grid.triangles(seen), walls]), grid.triangles(hidden), plane, reason)
+    return GroundFill(np.concatenate([floor, walls]), grid.triangles(hidden), plane, reason)
+
+
+def floor_reach(grid: PlaneGrid, lidar: np.ndarray | None, cameras: np.ndarray) -> float:
+    """How far (m) from the nearest camera ``(K, 3)`` the LiDAR returns ``(N, 3)`` on the floor
+    (within :data:`~splat.floor_cells.GROUND_BAND_M` of ``grid``'s plane) reach; 0 without returns."""
+    if lidar is None:
+        return 0.0
+    on_floor = lidar[np.abs(grid.heights(lidar)) < GROUND_BAND_M]
+    if len(on_floor) == 0:
+        return 0.0
+    return float(cKDTree(cameras).query(on_floor)[0].max())
 
 
 def _wall_patches(grid: PlaneGrid, crossings: np.ndarray, cameras: np.ndarray) -> np.ndarray:

@@ -1,5 +1,5 @@
-"""The two repairs of a warm-start mesh: snapping its vertices onto the LiDAR returns, and
-completing the floor no camera sees where the room encloses it."""
+"""The repairs of a warm-start mesh: snapping its vertices onto the LiDAR returns, completing the
+floor no camera sees where the room encloses it, and the floor too far for the mesh to bridge."""
 
 from __future__ import annotations
 
@@ -302,3 +302,33 @@ def test_floor_a_mapper_put_a_few_centimetres_off_the_plane_stays_floor(scene):
     train = scene.split("train")
     floor = floor_triangles(model, scene, train, lidar_points(scene, train))
     np.testing.assert_array_equal(floor, [True, True, False, False])
+
+
+def test_the_floor_beyond_the_near_range_is_filled_with_coarser_cells_as_far_as_the_lidar_reached():
+    """A street's road: the warm start has it near the cameras only, the LiDAR's returns on it
+    reach 30 m; the fill covers the rest out to there, its cells growing with the range."""
+    poses = camera_poses(3, pitch_deg=5.0)
+    near_floor = trimesh.creation.box(extents=(6.0, 6.0, 0.02))
+    near_floor.apply_translation((0.0, 2.0, -0.01))
+    rng = np.random.default_rng(0)
+    lidar = np.column_stack([rng.uniform(-5, 5, 40_000), rng.uniform(0.5, 30.0, 40_000), np.zeros(40_000)])
+    fill = ground_fill(near_floor, CAMERA, poses, lidar, cell_m=0.1, max_range_m=4.0, pixel_stride=1)
+    assert "coarser ones beyond 4 m" in fill.reason
+    centres = fill.triangles.mean(axis=1)
+    edges = np.linalg.norm(fill.triangles[:, 1] - fill.triangles[:, 0], axis=1)  # a side or a diagonal
+    assert np.abs(fill.triangles[..., 2]).max() < 1e-9
+    assert not ((np.abs(centres[:, 0]) < 2.9) & (centres[:, 1] < 4.9)).any()  # none over the mesh
+    reach = _range_from_cameras(centres, poses)
+    assert (reach > 17.0).sum() > 20 and reach.max() < 30.0 + 1.0
+    # Cells of 0.1 m (sides, diagonals) within 4 m; of 0.8 m or more beyond 16 m (plus a cell).
+    assert edges[reach < 3.9].max() <= 0.1 * np.sqrt(2) + 1e-6
+    assert edges[reach > 17.0].min() >= 0.8 - 1e-6
+    near_only = ground_fill(
+        near_floor, CAMERA, poses, lidar[np.linalg.norm(lidar, axis=1) < 3.0], cell_m=0.1, max_range_m=4.0
+    )
+    assert _range_from_cameras(near_only.triangles.mean(axis=1), poses).max() < 4.0 + 0.1
+
+
+def _range_from_cameras(points: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """Distance ``(N,)`` of points ``(N, 3)`` to the nearest camera of ``poses`` ``(K, 4, 4)``."""
+    return np.linalg.norm(points[:, None] - poses[None, :, :3, 3], axis=2).min(axis=1)
