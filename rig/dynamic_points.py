@@ -41,8 +41,8 @@ class DynamicConfig:
         margin_m, margin_relative: a point is seen through where the image's range exceeds its
             own by ``max(margin_m, margin_relative * range)``.
         min_votes: sweeps that must see through a point (fewer if fewer were compared).
-        grow_m: points of a sweep within this of one of its dynamic points are dynamic too,
-            unless on the ground (0: no growth).
+        grow_m, grow_support: a point of a sweep whose neighbours within ``grow_m`` are at
+            least ``grow_support`` dynamic is dynamic too, unless on the ground (0 m: no growth).
         ground_cell_m, ground_band_m: a point is on the ground where it lies less than
             ``ground_band_m`` above the lowest point of the sweep in its ``ground_cell_m`` cell of the
             sensor's x-y plane or the eight around it. The sensor's z axis must point roughly up
@@ -56,6 +56,7 @@ class DynamicConfig:
     margin_relative: float = 0.04
     min_votes: int = 2
     grow_m: float = 0.8
+    grow_support: float = 0.1
     ground_cell_m: float = 1.0
     ground_band_m: float = 0.25
 
@@ -143,16 +144,24 @@ def on_ground(points_sensor: np.ndarray, config: DynamicConfig) -> np.ndarray:
 
 def grown(points_sensor: np.ndarray, seeds: np.ndarray, config: DynamicConfig) -> np.ndarray:
     """``(N,)`` bool: the ``seeds`` ``(N,)`` of one sweep's points ``(N, 3)`` (sensor frame) and the
-    points within ``grow_m`` of a seed that are not :func:`on_ground`."""
+    points not :func:`on_ground` of whose neighbours within ``grow_m`` at least ``grow_support``
+    are seeds. A share, not a count: a lone seed on a wall must not take the hundreds of points
+    around it that a LiDAR draws 3 m away, while a vehicle's seeds crowd its lower half."""
     if config.grow_m <= 0 or not seeds.any():
         return seeds
     low = points_sensor[seeds].min(axis=0) - config.grow_m
     high = points_sensor[seeds].max(axis=0) + config.grow_m
     near = np.flatnonzero(~seeds & np.all((points_sensor >= low) & (points_sensor <= high), axis=1))
     near = near[~on_ground(points_sensor, config)[near]]
-    reached = cKDTree(points_sensor[seeds]).query(points_sensor[near], distance_upper_bound=config.grow_m)[0]
+    around = np.all((points_sensor >= low - config.grow_m) & (points_sensor <= high + config.grow_m), axis=1)
+
+    def neighbours(of: np.ndarray) -> np.ndarray:
+        return cKDTree(points_sensor[of]).query_ball_point(
+            points_sensor[near], config.grow_m, return_length=True
+        )
+
     out = seeds.copy()
-    out[near[np.isfinite(reached)]] = True
+    out[near[neighbours(seeds) >= config.grow_support * neighbours(around)]] = True
     return out
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from rig.dynamic_points import DynamicConfig, comparison_sweeps, dynamic_mask, sweep_view
+from rig.dynamic_points import DynamicConfig, comparison_sweeps, dynamic_mask, grown, sweep_view
 from rig.sim.movers import Mover, MovingRaycaster, inside_movers
 
 
@@ -89,3 +89,24 @@ def test_without_comparison_sweeps_nothing_is_dynamic() -> None:
     sensor, _ = _sweep(MovingRaycaster(static, (car,)), 0.0, (0.0, 0.0))
     view = sweep_view(0.0, sensor, np.eye(4), DynamicConfig())
     assert not dynamic_mask(view, [], DynamicConfig()).any()
+
+
+def test_a_lone_seed_on_a_wall_does_not_grow_and_a_crowd_of_them_takes_the_rest_of_their_object() -> None:
+    """Sensor frame, z up, 1.7 m above the floor: a wall 3 m ahead sampled every 2 cm with one
+    seed on it; a box 10 m ahead whose upper half is all seeds."""
+    v, w = np.meshgrid(np.arange(-2.0, 2.0, 0.02), np.arange(-1.7, 1.0, 0.02))
+    wall = np.column_stack([np.full(v.size, 3.0), v.ravel(), w.ravel()])
+    u, h = np.meshgrid(np.arange(-1.0, 1.0, 0.05), np.arange(-1.4, 0.0, 0.05))  # 0.3-1.7 m up
+    box = np.column_stack([np.full(u.size, 10.0), u.ravel(), h.ravel()])
+    x, y = np.meshgrid(np.arange(4.0, 14.0, 0.1), np.arange(-3.0, 3.0, 0.1))
+    floor = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, -1.7)])
+    points = np.concatenate([wall, box, floor])
+    seeds = np.zeros(len(points), dtype=bool)
+    seeds[len(wall) // 2] = True
+    on_box = np.arange(len(points)) >= len(wall)
+    on_box[len(wall) + len(box) :] = False
+    seeds[on_box & (points[:, 2] > -0.7)] = True
+    dynamic = grown(points, seeds, DynamicConfig())
+    assert dynamic[: len(wall)].sum() == 1
+    assert dynamic[on_box].mean() > 0.9
+    assert not dynamic[len(wall) + len(box) :].any()
