@@ -230,26 +230,27 @@ def ground_fill(
     points = np.concatenate(hits) if hits else np.zeros((0, 3))
     ranges = np.concatenate(ranges) if ranges else np.zeros(0)
     walls = _wall_patches(grid, np.concatenate(crossings), np.concatenate(cameras)) if crossings else empty
-    near = points[ranges < max_range_m]
-    seen = np.unique(grid.cells(near), axis=0) if len(near) else np.zeros((0, 2), dtype=np.int64)
-    floor = range_scaled_cells(plane, cell_m, max_range_m, points, ranges)
+    far = ranges >= max_range_m
+    seen = np.unique(grid.cells(points[~far]), axis=0) if (~far).any() else np.zeros((0, 2), dtype=np.int64)
+    coarse = range_scaled_cells(plane, cell_m, max_range_m, points[far], ranges[far])
     hidden = seen[:0]
     if complete_hidden:
         enclosing = mesh if enclosing is None else enclosing
         hidden = enclosed_hidden_cells(enclosing, grid, seen, closing_m, lidar=lidar)
     hidden = hidden[grid.near(hidden, poses_world_cam[:, :3, 3], max_range_m)]
-    far = len(floor) // 2 - len(seen)
     reason = (
         f"{len(seen)} floor cells of {cell_m:g} m added under mesh holes the cameras see through"
-        + (f", and {far} coarser ones beyond {max_range_m:g} m (to {reach:.0f} m)" if far else "")
-        if len(floor)
+        if len(seen) or len(coarse)
         else "the warm-start mesh covers the floor the cameras see"
     )
+    if len(coarse):
+        reason += f", and {len(coarse) // 2} coarser ones beyond {max_range_m:g} m (to {reach:.0f} m)"
     if len(walls):
         reason += f"; {len(walls) // 2} upright {cell_m:g} m patches where LiDAR returns close those holes"
     if complete_hidden:
         reason += f"; {len(hidden)} hidden floor cells completed where walls and objects enclose them"
-    return GroundFill(np.concatenate([floor, walls]), grid.triangles(hidden), plane, reason)
+    floor = np.concatenate([grid.triangles(seen), coarse, walls])
+    return GroundFill(floor, grid.triangles(hidden), plane, reason)
 
 
 def floor_reach(grid: PlaneGrid, lidar: np.ndarray | None, cameras: np.ndarray) -> float:
