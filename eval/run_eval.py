@@ -52,7 +52,7 @@ from rig.mesh_io import load_mesh
 from rig.mesh_rays import mesh_raycaster
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
-from splat.background_mask import scored_background_mask
+from splat.background_mask import above_lidar, scored_background_mask
 from splat.blocks.partition import PARTITION_FILE, Partition, read_partition
 from splat.exposure import through_color_map
 from splat.model import TriangleModel, load_model
@@ -226,13 +226,20 @@ def _photometric(
     hard_edged = replace(model, sigma=HARD_EDGE_SIGMA)
     for i, keyframe in enumerate(tests):
         lidar = scene.depth(keyframe)
-        above = scored_background_mask(torch.as_tensor(lidar, device=model.device))
+        depth = torch.as_tensor(lidar, device=model.device)
+        scene_moving = scene.moving_mask(keyframe)
+        shows = scored_background_mask(
+            depth,
+            float(scene.camera.K[1, 1]),
+            None if scene_moving is None else torch.as_tensor(scene_moving, device=model.device),
+        )
+        above = above_lidar(depth) if shows is not None else None
         matrix = (color_maps or {}).get(keyframe.name)
         color_map = None if matrix is None else torch.as_tensor(matrix)
-        out = model.render_at(scene.camera, keyframe.T_world_cam, above)
+        out = model.render_at(scene.camera, keyframe.T_world_cam, shows)
         render = _as_rgb(through_color_map(out.rgb, color_map))
         target = scene.image(keyframe).astype(np.float32) / 255.0
-        hard = hard_edged.render_at(scene.camera, keyframe.T_world_cam, above).rgb
+        hard = hard_edged.render_at(scene.camera, keyframe.T_world_cam, shows).rgb
         hard_psnrs.append(psnr(_as_rgb(through_color_map(hard, color_map)), target))
         alpha = out.alpha.detach().cpu().numpy()
         aligned_psnrs.append(psnr(color_aligned(render, target), target))

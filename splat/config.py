@@ -134,8 +134,9 @@ class TrainConfig(BaseModel):
     background_sh_degree: int = Field(2, ge=0, le=3, description="degree of the background's harmonics")
     background_where: Literal["above-lidar", "everywhere"] = Field(
         "above-lidar",
-        description="where training composites it: above each image column's topmost LiDAR return "
-        "(elsewhere a gap between triangles stays black, so it is still filled), or everywhere",
+        description="where training composites it: where the LiDAR reached nothing, above each image "
+        "column's topmost return and in 2° windows without a return between returns (elsewhere a gap "
+        "between triangles stays black, so it is still filled), or everywhere",
     )
 
     # Densification.

@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import torch
 
+from rig.camera import CameraModel
 from slam_bridge.scene import Keyframe, Scene
 from splat.background_mask import scored_background_mask
 from splat.config import TrainConfig
@@ -18,12 +19,19 @@ from splat.views import View, load_views
 
 def load_held_out_views(scene: Scene, keyframes: list[Keyframe], config: TrainConfig) -> list[View]:
     """The views of held-out ``keyframes`` as they are scored: with a trained background, it shows
-    only above the LiDAR's reach (:func:`~splat.background_mask.scored_background_mask`)."""
+    only where the LiDAR reached nothing (:func:`~splat.background_mask.scored_background_mask`)."""
     views = load_views(scene, keyframes, device=config.device)
     if config.background != "none":
-        for view in views:
-            view.background_mask = scored_background_mask(view.depth)
+        mark_background(views, scene.camera)
     return views
+
+
+def mark_background(views: list[View], camera: CameraModel) -> None:
+    """Set each view's ``background_mask`` to where its LiDAR reached nothing
+    (:func:`~splat.background_mask.scored_background_mask`)."""
+    focal = float(camera.K[1, 1])
+    for view in views:
+        view.background_mask = scored_background_mask(view.depth, focal, view.moving_mask)
 
 
 @torch.no_grad()

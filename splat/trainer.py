@@ -24,12 +24,11 @@ from rig.errors import InputError
 from rig.transforms import invert
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
-from splat.background_mask import scored_background_mask
 from splat.coarse_views import coarse_iterations, half_camera, half_view
 from splat.config import TrainConfig, load_config
 from splat.exposure import GAIN_SPREAD_LIMIT, ViewExposures, gain_spread, held_out_maps, neighbour_gains
 from splat.finite import all_finite
-from splat.held_out_views import evaluate_views, load_held_out_views, write_renders
+from splat.held_out_views import evaluate_views, load_held_out_views, mark_background, write_renders
 from splat.initialise import build_model, initial_triangles
 from splat.losses import image_moments, training_loss
 from splat.model import TriangleModel, save_model
@@ -180,8 +179,7 @@ class Trainer:
         self.train_views: list[View] = load_views(self.scene, self.train_keyframes, device=device)
         self.test_views: list[View] = load_held_out_views(self.scene, self.test_keyframes, self.config)
         if self.config.background != "none" and self.config.background_where == "above-lidar":
-            for view in self.train_views:
-                view.background_mask = scored_background_mask(view.depth)
+            mark_background(self.train_views, self.scene.camera)
         masked = [float(v.moving_mask.float().mean()) for v in self.train_views if v.moving_mask is not None]
         if masked:
             fraction = sum(masked) / len(self.train_views)

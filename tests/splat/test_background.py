@@ -24,7 +24,7 @@ from splat.background import (
     map_values,
     sh_basis,
 )
-from splat.background_mask import above_lidar
+from splat.background_mask import above_lidar, beyond_range, scored_background_mask
 from splat.config import make_config
 from splat.export import export_mesh
 from splat.lidar_points import lidar_points
@@ -188,6 +188,28 @@ def test_training_shows_the_background_only_above_the_topmost_lidar_returns():
     assert bool(above[:6, :19].all()) and not above[6:, :19].any()  # gaps between returns bridged
     assert bool(above[:3, 23:].all()) and not above[3:, 23:].any()
     assert bool(above_lidar(torch.zeros(10, 40)).all())  # no return: all beyond the LiDAR
+
+
+def test_the_background_also_shows_where_the_lidar_reached_nothing_between_its_returns():
+    # Rings 4 px apart over 80 columns: an overpass (rows 8-20), sky beyond the LiDAR's range under
+    # it (rows 21-59), the road (rows 60-100); below row 100 the camera sees beyond the LiDAR's field.
+    depth = torch.zeros(120, 80)
+    for row in [8, 12, 16, 20, *range(60, 101, 4)]:
+        depth[row, ::2] = 10.0
+    focal = 8 / math.tan(math.radians(2.0))  # the 2° empty window is 9 px wide
+    beyond = beyond_range(depth, focal)
+    assert bool(beyond[30:50, 10:70].all())  # the sky under the overpass
+    assert not beyond[:21].any() and not beyond[60:].any()  # the overpass, the road and below it
+    mask = scored_background_mask(depth, focal)
+    assert not mask[8:21].any() and bool(mask[:8].all()) and bool(mask[30:50].all())
+    # The gaps between rings stay black (a hole there is a hole), and so does a moving object's.
+    depth[21:60, ::2] = torch.where(torch.arange(21, 60)[:, None] % 4 == 0, 10.0, 0.0)
+    assert not beyond_range(depth, focal).any()
+    depth[21:60, 30:50] = 0.0
+    assert bool(beyond_range(depth, focal)[30:50, 36:44].all())
+    moving = torch.zeros(120, 80, dtype=torch.bool)
+    moving[21:60, 30:50] = True
+    assert not beyond_range(depth, focal, moving).any()
 
 
 def test_a_few_adam_steps_learn_a_sky_gradient():
