@@ -13,6 +13,7 @@ from torch import Tensor
 
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import Keyframe, Scene
+from splat.at_infinity import explained_at_infinity
 from splat.background import constant_background
 from splat.camera_only import camera_only_seeds
 from splat.config import TrainConfig
@@ -82,26 +83,39 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         triangles = np.concatenate([triangles, _scaled(fill.triangles, config.init_scale), fill.hidden])
         up = up if fill.plane is None else fill.plane[:3]
     depths = [scene.depth(k) for k in train]
+    images = [scene.image(k) for k in train]
     sweeps = None
     if config.plane_sweep:
-        images = [scene.image(k) for k in train]
         sweeps = keyframe_sweeps(scene.camera, images, poses, depths, [scene.moving_mask(k) for k in train])
+    to_background = 0
     if config.upward_extension:
         lidars = [scene.lidar(k) for k in train]
         extension = upward_extension(scene.camera, poses, lidars, up, mesh, sweeps)
         notes.append(extension.reason)
-        triangles = np.concatenate([triangles, _scaled(extension.triangles, config.init_scale)])
+        strips = extension.triangles
+        if config.background != "none":
+            explained = explained_at_infinity(strips.mean(axis=1), scene.camera, images, poses)
+            strips, to_background = strips[~explained], to_background + int(explained.sum())
+        triangles = np.concatenate([triangles, _scaled(strips, config.init_scale)])
     colors = None if config.init_color == "project" else np.full_like(triangles, GREY)
     if sweeps is not None:
         # Cells the extension made already explain what they cover.
-        known = (
-            np.concatenate([lidar, extension.triangles.mean(axis=1)]) if config.upward_extension else lidar
-        )
+        known = np.concatenate([lidar, strips.mean(axis=1)]) if config.upward_extension else lidar
         planes = extension.planes if config.upward_extension else None
         cells = swept_cells(scene.camera, images, poses, depths, sweeps, known, planes)
         notes.append(cells.reason)
-        triangles = np.concatenate([triangles, _scaled(cells.triangles, config.init_scale)])
-        colors = None if colors is None else np.concatenate([colors, cells.colors])
+        kept = np.ones(len(cells.triangles), dtype=bool)
+        if config.background != "none":
+            kept = ~explained_at_infinity(cells.triangles.mean(axis=1), scene.camera, images, poses)
+            to_background += int((~kept).sum())
+        triangles = np.concatenate([triangles, _scaled(cells.triangles[kept], config.init_scale)])
+        colors = None if colors is None else np.concatenate([colors, cells.colors[kept]])
+    if to_background:
+        notes.append(
+            f"{to_background} camera-only triangles left to the background: the images agree at least "
+            "twice as well along their directions, as if they lay at infinity (sky, far structure; "
+            "splat.at_infinity)"
+        )
     if config.camera_only_seeds and scene.sparse_points_path is None:
         notes.append("no camera-only triangles: the scene has no sparse points (lts prepare --sparse-points)")
     elif config.camera_only_seeds:
