@@ -14,7 +14,7 @@ from torch import Tensor
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import Keyframe, Scene
 from splat.at_infinity import explained_at_infinity
-from splat.background import constant_background
+from splat.background import background_sphere, constant_background
 from splat.camera_only import camera_only_seeds
 from splat.config import TrainConfig
 from splat.init_mesh import decouple_and_scale, ground_fill, simplify, up_direction
@@ -200,7 +200,26 @@ def build_model(
         model.background = constant_background(
             rgb, config.background_sh_degree, with_map=with_map, dtype=triangles.dtype, device=config.device
         )
+        sphere = views_background_sphere(views)
+        if sphere is not None:
+            model.background_sphere = torch.as_tensor(sphere, dtype=triangles.dtype, device=config.device)
         kind = " and a map down to 0.7°" if with_map else ""
-        log(f"background: degree-{config.background_sh_degree} harmonics{kind}, starting at the training "
-            f"images' mean colour ({', '.join(f'{c:.2f}' for c in rgb.tolist())})")  # fmt: skip
+        where = "at infinity" if sphere is None else f"on a sphere of {sphere[3]:.0f} m about the cameras"
+        log(f"background: degree-{config.background_sh_degree} harmonics{kind} {where}, starting at the "
+            f"training images' mean colour ({', '.join(f'{c:.2f}' for c in rgb.tolist())})")  # fmt: skip
     return model
+
+
+def views_background_sphere(views: list[View]) -> np.ndarray | None:
+    """:func:`~splat.background.background_sphere` ``(4,)`` of ``views``' cameras and LiDAR depths
+    (None without depths)."""
+    centres = []
+    depths = []
+    for view in views:
+        T = view.T_cam_world.detach().double().cpu()
+        centres.append((-T[:3, :3].T @ T[:3, 3]).numpy())
+        if view.depth is not None:
+            depth = view.depth.detach().cpu().numpy()
+            depths.append(depth[np.isfinite(depth) & (depth > 0)])
+    lidar = np.concatenate(depths) if depths else np.zeros(0)
+    return background_sphere(np.array(centres).reshape(-1, 3), lidar)

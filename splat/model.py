@@ -51,12 +51,15 @@ class TriangleModel:
         sigma: window sharpness (> 0; smaller is sharper).
         opacity_floor: lower bound of the activated opacity in [0, 1].
         background: ``(K, 3)`` leaf background coefficients, or None for a black background.
+        background_sphere: ``(4,)`` the sphere the background lies on (centre, radius; m, world), or
+            None: at infinity (:func:`splat.background.background_sphere`).
     """
 
     params: dict[str, Tensor]
     sigma: float = 1.0
     opacity_floor: float = 0.0
     background: Tensor | None = None
+    background_sphere: Tensor | None = None
 
     @classmethod
     def from_triangles(
@@ -121,11 +124,11 @@ class TriangleModel:
             return out
         shows = (1.0 - out.alpha).clamp(min=0.0)
         if background_mask is None:
-            bg = background_image(self.background, camera, T_cam_world)
+            bg = background_image(self.background, camera, T_cam_world, self.background_sphere)
             return replace(out, rgb=out.rgb + bg * shows[..., None])
         # Only the masked pixels (indoors often none): the harmonics are not evaluated elsewhere.
         pixels = background_mask.reshape(-1).nonzero().squeeze(1)
-        bg = background_pixels(self.background, camera, T_cam_world, pixels)
+        bg = background_pixels(self.background, camera, T_cam_world, pixels, self.background_sphere)
         added = torch.zeros_like(out.rgb).view(-1, 3)
         added = added.index_add(0, pixels, bg * shows.reshape(-1)[pixels, None])
         return replace(out, rgb=out.rgb + added.view_as(out.rgb))
@@ -149,6 +152,8 @@ class TriangleModel:
         }
         if self.background is not None:
             state["background"] = self.background.detach().cpu().clone()
+        if self.background_sphere is not None:
+            state["background_sphere"] = self.background_sphere.detach().cpu().clone()
         return state
 
     @classmethod
@@ -156,7 +161,8 @@ class TriangleModel:
         cls, state: dict, device: torch.device | str = "cpu", path: Path | None = None
     ) -> TriangleModel:
         """Inverse of :meth:`to_state`; errors name the file and the missing/malformed field. A state
-        without ``background`` (written before backgrounds existed, or with none) loads without one."""
+        without ``background`` (written before backgrounds existed, or with none) loads without one,
+        one without ``background_sphere`` with its background at infinity."""
         params = {}
         for name in PARAM_NAMES:
             if name not in state or not isinstance(state[name], Tensor):
@@ -171,7 +177,9 @@ class TriangleModel:
             if not all_finite(params[name]):
                 raise InputError("holds NaN or Inf", path=path, field=name)
         background = _background_from_state(state, device, path)
-        return cls(params, float(state.get("sigma", 1.0)), float(state.get("opacity_floor", 0.0)), background)
+        sphere = _sphere_from_state(state, device, path)
+        sigma, floor = float(state.get("sigma", 1.0)), float(state.get("opacity_floor", 0.0))
+        return cls(params, sigma, floor, background, sphere)
 
 
 def _background_from_state(state: dict, device: torch.device | str, path: Path | None) -> Tensor | None:
@@ -191,6 +199,19 @@ def _background_from_state(state: dict, device: torch.device | str, path: Path |
     if not all_finite(background):
         raise InputError("holds NaN or Inf", path=path, field="background")
     return background.to(device).clone().requires_grad_(True)
+
+
+def _sphere_from_state(state: dict, device: torch.device | str, path: Path | None) -> Tensor | None:
+    """The state's background sphere ``(4,)`` (centre, radius), or None (at infinity)."""
+    sphere = state.get("background_sphere")
+    if sphere is None:
+        return None
+    field = "background_sphere"
+    if not isinstance(sphere, Tensor) or tuple(sphere.shape) != (4,):
+        raise InputError("expected a tensor of shape (4,): centre and radius", path=path, field=field)
+    if not all_finite(sphere) or float(sphere[3]) <= 0:
+        raise InputError("expected a finite centre and a radius > 0", path=path, field=field)
+    return sphere.to(device=device, dtype=torch.float32).clone()
 
 
 def save_model(model: TriangleModel, path: str | Path) -> None:

@@ -5,14 +5,16 @@ Each block keeps the triangles whose centroid lies in its core grown by half its
 seam has its centroid on one side in one block and on the other side in the next, so the plain
 core test would leave a gap of up to half a triangle along every seam. The few duplicates the
 overlap keeps are opaque surfaces drawn twice; the collision mesh's export welds and deduplicates
-them. The background (harmonics and map of the sky, in world directions) is the blocks'
-average weighted by their training keyframes.
+them. The background (harmonics and map of the sky) and the sphere it lies on are the blocks'
+averages weighted by their training keyframes (each block's sphere lies about its own cameras: the
+average is an approximation, as is averaging what each block saw of the sky).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import torch
+from torch import Tensor
 
 from splat.blocks.partition import Block, GroundFrame
 from splat.model import TriangleModel
@@ -52,11 +54,18 @@ def merge_models(models: list[TriangleModel], keep: list[np.ndarray], weights: l
         .requires_grad_(True)
         for name in names
     }
-    with_background = [(m.background.detach(), w) for m, w in zip(models, weights, strict=True)
-                       if m.background is not None]  # fmt: skip
-    background = None
-    if with_background:
-        total = sum(w for _, w in with_background)
-        background = sum(b * (w / total) for b, w in with_background).clone().requires_grad_(True)
+    background = _weighted_mean([m.background for m in models], weights)
+    if background is not None:
+        background = background.requires_grad_(True)
+    sphere = _weighted_mean([m.background_sphere for m in models], weights)
     last = models[0]
-    return TriangleModel(params, last.sigma, last.opacity_floor, background)
+    return TriangleModel(params, last.sigma, last.opacity_floor, background, sphere)
+
+
+def _weighted_mean(tensors: list[Tensor | None], weights: list[float]) -> Tensor | None:
+    """The ``weights``' mean of those of ``tensors`` (one shape) that are not None (None if all are)."""
+    present = [(t.detach(), w) for t, w in zip(tensors, weights, strict=True) if t is not None]
+    if not present:
+        return None
+    total = sum(w for _, w in present)
+    return sum(t * (w / total) for t, w in present).clone()

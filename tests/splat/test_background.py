@@ -17,12 +17,16 @@ from rig.transforms import make_transform
 from splat.background import (
     MAP_LEVELS,
     MAP_TEXELS,
+    REACH_MULTIPLE,
+    REACH_PERCENTILE,
     background_image,
     background_rgb,
+    background_sphere,
     camera_rays,
     constant_background,
     map_values,
     sh_basis,
+    sphere_directions,
 )
 from splat.background_mask import above_lidar, beyond_range, scored_background_mask
 from splat.config import make_config
@@ -92,6 +96,47 @@ def test_a_constant_background_has_its_colour_everywhere_and_world_directions_fo
     world = axis @ T_CAM_WORLD[:3, :3]
     torch.testing.assert_close(world.mean(0), torch.tensor([0.0, 1.0, 0.0]), atol=0.02, rtol=0)
     torch.testing.assert_close(centre, background_rgb(coefficients, world))
+
+
+def test_a_background_on_a_sphere_shows_the_parallax_of_the_cameras_that_move_inside_it():
+    sphere = torch.tensor([1.0, 2.0, 0.0, 50.0])
+    directions = torch.nn.functional.normalize(torch.randn(100, 3, dtype=torch.float64), dim=1)
+    # From the centre, the sphere's directions are the rays'; at infinity (None), always the rays'.
+    torch.testing.assert_close(
+        sphere_directions(directions, sphere[:3].double(), sphere.double()), directions
+    )
+    assert sphere_directions(directions, torch.zeros(3), None) is directions
+    # A point on the sphere seen from two places inside it: the same sphere direction from both.
+    point = sphere[:3].double() + 50.0 * directions[:1]
+    for origin in (torch.tensor([10.0, -5.0, 3.0]), torch.tensor([-20.0, 7.0, 1.0])):
+        ray = torch.nn.functional.normalize(point - origin.double(), dim=1)
+        torch.testing.assert_close(sphere_directions(ray, origin.double(), sphere.double()), directions[:1])
+
+    # A camera 20 m from the centre sees a sphere background displaced against one at infinity,
+    # and the pixels of its optical axis (world +y) look along the direction to (20 + 45.8, ...).
+    coefficients = torch.randn(9, 3)  # smooth: four pixels' mean is the mean ray's colour
+    T_world_cam = T_WORLD_CAM.copy()
+    T_world_cam[:3, 3] = [20.0, 0.0, 0.0]
+    T_cam_world = torch.as_tensor(np.linalg.inv(T_world_cam), dtype=torch.float32)
+    at_infinity = background_image(coefficients, CAMERA, T_cam_world)
+    on_sphere = background_image(coefficients, CAMERA, T_cam_world, torch.tensor([0.0, 0.0, 0.0, 50.0]))
+    assert float((on_sphere - at_infinity).abs().max()) > 0.05
+    axis = torch.tensor([[20.0, math.sqrt(50.0**2 - 20.0**2), 0.0]]) / 50.0
+    expected = background_rgb(coefficients, axis)[0]
+    torch.testing.assert_close(on_sphere[23:25, 31:33].mean(dim=(0, 1)), expected, atol=0.03, rtol=0)
+
+
+def test_the_sphere_lies_twice_the_lidars_reach_beyond_the_farthest_camera():
+    centres = np.array([[0.0, 0, 0], [10.0, 0, 0], [20.0, 0, 2]])
+    depths = np.random.default_rng(0).uniform(1.0, 60.0, 10_000)
+    sphere = background_sphere(centres, depths)
+    np.testing.assert_allclose(sphere[:3], [10.0, 0.0, 2 / 3])
+    spread = np.hypot(10.0, 4 / 3)
+    np.testing.assert_allclose(sphere[3], spread + REACH_MULTIPLE * np.percentile(depths, REACH_PERCENTILE))
+    assert (
+        background_sphere(centres, np.zeros(0)) is None
+        and background_sphere(np.zeros((0, 3)), depths) is None
+    )
 
 
 def _azimuth_elevation(azimuth_deg: torch.Tensor, elevation_deg: torch.Tensor) -> torch.Tensor:
@@ -251,7 +296,19 @@ def test_models_round_trip_with_and_without_a_background(tmp_path):
         load_model(tmp_path / "map.pt").render(CAMERA, T_CAM_WORLD).rgb, model.render(CAMERA, T_CAM_WORLD).rgb
     )
 
+    model.background_sphere = torch.tensor([1.0, 2.0, 3.0, 80.0])
+    save_model(model, tmp_path / "sphere.pt")
+    loaded = load_model(tmp_path / "sphere.pt")
+    assert torch.equal(loaded.background_sphere, model.background_sphere)
+    torch.testing.assert_close(loaded.render(CAMERA, T_CAM_WORLD).rgb, model.render(CAMERA, T_CAM_WORLD).rgb)
+    assert load_model(tmp_path / "map.pt").background_sphere is None  # older files: at infinity
+
     state = model.to_state()
+    for bad, message in ((torch.zeros(3), "shape"), (torch.tensor([0.0, 0, 0, -1]), "radius > 0"),
+                         (torch.tensor([math.inf, 0, 0, 1]), "finite")):  # fmt: skip
+        with pytest.raises(InputError, match=message) as error:
+            TriangleModel.from_state({**state, "background_sphere": bad}, path=tmp_path / "m.pt")
+        assert error.value.field == "background_sphere"
     for bad, message in ((torch.zeros(5, 3), "coefficients per channel"), (torch.zeros(9), "shape"),
                          ("sky", "tensor"), (torch.full((4, 3), math.nan), "NaN")):  # fmt: skip
         with pytest.raises(InputError, match=message) as error:
@@ -293,6 +350,8 @@ def test_training_with_and_without_a_background_exports_only_the_triangles(scene
     if background != "none":
         rows = 9 + (MAP_TEXELS if background == "map" else 0)
         assert model.background.shape == (rows, 3) and bool(torch.isfinite(model.background).all())
+        # The scene's LiDAR reaches a few metres: the sphere lies within tens of metres, not at infinity.
+        assert 2.0 < float(model.background_sphere[3]) < 50.0
         # Beyond the corner's walls (the black top right of the views) is above every return.
         assert all(0 < int(mask.sum()) < mask.numel() for mask in masks)
     else:

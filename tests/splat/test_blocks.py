@@ -152,10 +152,11 @@ def _model_at(x: np.ndarray, background: float | None) -> TriangleModel:
     model = TriangleModel.from_triangles(triangles, torch.full((len(x), 3, 3), 0.5), 0.9)
     if background is not None:
         model.background = torch.full((9, 3), background, requires_grad=True)
+        model.background_sphere = torch.tensor([background, 0.0, 0.0, 100.0 * (1 + background)])
     return model
 
 
-def test_merge_keeps_each_blocks_core_and_a_seam_overlap_and_averages_the_sky():
+def test_merge_keeps_each_blocks_core_and_a_seam_overlap_and_averages_the_sky_and_its_sphere():
     frame = GroundFrame(np.array([[1.0, 0, 0], [0, 1.0, 0]]), np.array([0, 0, 1.0]))
     left = Block(0, np.array([[-np.inf, -np.inf], [0.0, np.inf]]), 1.0, (), 30, 0)
     right = Block(1, np.array([[0.0, -np.inf], [np.inf, np.inf]]), 1.0, (), 10, 0)
@@ -167,7 +168,8 @@ def test_merge_keeps_each_blocks_core_and_a_seam_overlap_and_averages_the_sky():
     assert keep_b.tolist() == [False, False, True, True, True, True]
     merged = merge_models([a, b], [keep_a, keep_b], [30.0, 10.0])
     assert merged.n_triangles == 8
-    assert torch.allclose(merged.background, torch.full((9, 3), 0.75))
+    assert torch.allclose(merged.background, torch.full((9, 3), 0.75)) and merged.background.requires_grad
+    assert torch.allclose(merged.background_sphere, torch.tensor([0.75, 0.0, 0.0, 175.0]))
 
 
 def _run(args: list, **kwargs) -> subprocess.CompletedProcess:
