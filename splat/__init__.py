@@ -27,6 +27,7 @@ _EXPORTS = {
     "TrainingInterruptedError": "splat.trainer",
     "train": "splat.trainer",
     "background_image": "splat.background",
+    "background_sphere": "splat.background",
     "constant_background": "splat.background",
     "ViewExposures": "splat.exposure",
     "PoseCorrections": "splat.pose_corrections",
