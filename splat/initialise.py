@@ -210,9 +210,24 @@ def build_model(
     return model
 
 
+#: Below this fraction of the training pixels showing the background, it stays at infinity.
+MIN_SPHERE_BACKGROUND_FRACTION = 0.01
+
+
 def views_background_sphere(views: list[View]) -> np.ndarray | None:
-    """:func:`~splat.background.background_sphere` ``(4,)`` of ``views``' cameras and LiDAR depths
-    (None without depths)."""
+    """:func:`~splat.background.background_sphere` ``(4,)`` of ``views``' cameras and LiDAR depths,
+    or None (at infinity): without depths, or where the background shows at fewer than
+    :data:`MIN_SPHERE_BACKGROUND_FRACTION` of the views' pixels (their ``background_mask``).
+
+    Indoors the LiDAR reaches nearly every surface the camera sees (the demo room shows the
+    background at 0.015 % of its training pixels): there is no far structure for a sphere to place,
+    and the demo room's PSNR was 0.04 dB lower with one (mean of five seeds).
+    """
+    pixels = [v.image.shape[0] * v.image.shape[1] for v in views]
+    masks = [v.background_mask for v in views]
+    shown = [n if m is None else int(m.sum()) for m, n in zip(masks, pixels, strict=True)]
+    if sum(shown) < MIN_SPHERE_BACKGROUND_FRACTION * sum(pixels):
+        return None
     centres = []
     depths = []
     for view in views:

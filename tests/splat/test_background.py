@@ -31,11 +31,13 @@ from splat.background import (
 from splat.background_mask import above_lidar, beyond_range, scored_background_mask
 from splat.config import make_config
 from splat.export import export_mesh
+from splat.initialise import views_background_sphere
 from splat.lidar_points import lidar_points
 from splat.model import TriangleModel, load_model, save_model
 from splat.param_rows import make_optimizer, replace_rows
 from splat.raster.scenes import pinhole
 from splat.trainer import Trainer, camera_only_triangles
+from splat.views import View
 
 CAMERA = pinhole(64, 48, fov_deg=80.0)
 # Looking along world +y from 1 m up (world z up): image rows above the centre see the sky.
@@ -137,6 +139,28 @@ def test_the_sphere_lies_twice_the_lidars_reach_beyond_the_farthest_camera():
         background_sphere(centres, np.zeros(0)) is None
         and background_sphere(np.zeros((0, 3)), depths) is None
     )
+
+
+def test_the_background_stays_at_infinity_where_it_shows_at_under_one_percent_of_the_pixels():
+    def view(x: float, shown_rows: int) -> View:
+        T_world_cam = T_WORLD_CAM.copy()
+        T_world_cam[:3, 3] = [x, 0.0, 1.0]
+        mask = torch.zeros(48, 64, dtype=torch.bool)
+        mask[:shown_rows] = True
+        depth = torch.full((48, 64), 20.0)
+        T = torch.as_tensor(np.linalg.inv(T_world_cam), dtype=torch.float32)
+        return View("v", T, torch.zeros(48, 64, 3), depth, None, background_mask=mask)
+
+    outdoors = views_background_sphere([view(0.0, 12), view(10.0, 12)])  # a quarter of the pixels
+    np.testing.assert_allclose(outdoors, [5.0, 0.0, 1.0, 5.0 + REACH_MULTIPLE * 20.0], rtol=1e-6)
+    assert views_background_sphere([view(0.0, 0), view(10.0, 0)]) is None  # indoors: nowhere
+    unmasked = [view(0.0, 0), view(10.0, 0)]
+    for v in unmasked:
+        v.background_mask = None  # composited everywhere
+    assert views_background_sphere(unmasked) is not None
+    no_depth = [view(0.0, 12)]
+    no_depth[0].depth = None
+    assert views_background_sphere(no_depth) is None
 
 
 def _azimuth_elevation(azimuth_deg: torch.Tensor, elevation_deg: torch.Tensor) -> torch.Tensor:
