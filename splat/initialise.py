@@ -12,6 +12,7 @@ import trimesh
 from torch import Tensor
 
 from rig.mesh_io import load_mesh
+from rig.transforms import invert
 from slam_bridge.scene import Keyframe, Scene
 from splat.at_infinity import explained_at_infinity
 from splat.background import background_sphere, constant_background
@@ -23,6 +24,7 @@ from splat.lidar_points import keyframe_lidar_points, lidar_points
 from splat.lidar_snap import snap_to_lidar
 from splat.model import TriangleModel
 from splat.plane_sweep import keyframe_sweeps, swept_cells
+from splat.strategy.variance import lidar_returns
 from splat.upward_extension import upward_extension
 from splat.views import View
 
@@ -228,13 +230,7 @@ def views_background_sphere(views: list[View]) -> np.ndarray | None:
     shown = [n if m is None else int(m.sum()) for m, n in zip(masks, pixels, strict=True)]
     if sum(shown) < MIN_SPHERE_BACKGROUND_FRACTION * sum(pixels):
         return None
-    centres = []
-    depths = []
-    for view in views:
-        T = view.T_cam_world.detach().double().cpu()
-        centres.append((-T[:3, :3].T @ T[:3, 3]).numpy())
-        if view.depth is not None:
-            depth = view.depth.detach().cpu().numpy()
-            depths.append(depth[np.isfinite(depth) & (depth > 0)])
-    lidar = np.concatenate(depths) if depths else np.zeros(0)
-    return background_sphere(np.array(centres).reshape(-1, 3), lidar)
+    poses = [view.T_cam_world.detach().cpu().numpy() for view in views]
+    centres = invert(np.array(poses).reshape(-1, 4, 4))[:, :3, 3]
+    depths = [v.depth[lidar_returns(v.depth)].detach().cpu().numpy() for v in views if v.depth is not None]
+    return background_sphere(centres, np.concatenate(depths) if depths else np.zeros(0))
