@@ -1,4 +1,4 @@
-// The per-pair maths of triangle_math.h over a run of pixels of one tile row at once (SIMD lanes),
+// The per-pair maths of triangle_math.h over a block of pixels of one tile at once (SIMD lanes),
 // for the CPU kernel. Each pixel's compositing state is independent of its neighbours', so the
 // lanes only share the triangle; the branches of the scalar form become lane masks. The values
 // are those of the scalar form (the same operations in the same order, -ffp-contract=off) but
@@ -30,13 +30,11 @@ namespace lts {
 template <typename T>
 using Lanes = at::vec::Vectorized<T>;
 
-// Number of lanes in one vector of T; a tile row of kTile pixels is kTile / lane_count vectors.
+// Number of lanes in one vector of T.
 template <typename T>
 constexpr int lane_count() {
   return Lanes<T>::size();
 }
-static_assert(kTile % Lanes<float>::size() == 0 && kTile % Lanes<double>::size() == 0,
-              "a tile row must be a whole number of vectors");
 
 // Vector instruction set of the lanes, for reports.
 inline const char* lane_instruction_set() {
@@ -53,6 +51,19 @@ inline const char* lane_instruction_set() {
 template <typename T>
 inline uint32_t lane_bits(const Lanes<T>& mask) {
   return ~static_cast<uint32_t>(mask.zero_mask()) & ((1u << lane_count<T>()) - 1u);
+}
+
+// The lanes whose bit is set in `bits` (lane i: bit i), as a comparison result.
+template <typename T>
+inline Lanes<T> lanes_of_bits(uint32_t bits) {
+  using I = at::vec::int_same_size_t<T>;
+  using VI = Lanes<I>;
+  static const VI lane_bit = [] {
+    alignas(64) I b[VI::size()];
+    for (int i = 0; i < VI::size(); ++i) b[i] = I(1) << i;
+    return VI::loadu(b);
+  }();
+  return at::vec::cast<T>((VI(I(bits)) & lane_bit) == lane_bit);
 }
 
 template <typename T>
@@ -79,13 +90,14 @@ struct LaneWindow {
 };
 
 template <typename T>
-inline LaneWindow<T> eval_window(const T* p, const Lanes<T>& x, T y, const Lanes<T>& in) {
+inline LaneWindow<T> eval_window(const T* p, const Lanes<T>& x, const Lanes<T>& y,
+                                 const Lanes<T>& in) {
   using V = Lanes<T>;
   LaneWindow<T> w;
   for (int j = 0; j < 3; ++j) {
     // (a x + b y) + d in that order, as the scalar form and the reference compute it.
-    const V by(p[kLine + 3 * j + 1] * y);
-    w.l[j] = param(p, kLine + 3 * j) * x + by + param(p, kLine + 3 * j + 2);
+    w.l[j] = param(p, kLine + 3 * j) * x + param(p, kLine + 3 * j + 1) * y +
+             param(p, kLine + 3 * j + 2);
   }
   w.m = at::vec::minimum(w.l[0], at::vec::minimum(w.l[1], w.l[2]));
   // Below the support threshold t (triangle_setup.h) alpha < 1/255: such lanes skip exp and log.
@@ -133,8 +145,8 @@ struct LaneGrads {
 // pair_backward of triangle_math.h on lanes. Lanes outside `w.hit` must arrive with zero
 // upstream gradients and finite depth; they add nothing.
 template <typename T>
-inline void pair_backward(const T* p, const Lanes<T>& x, T y, const LaneWindow<T>& w,
-                          const Lanes<T>& depth, const Lanes<T>& d_alpha,
+inline void pair_backward(const T* p, const Lanes<T>& x, const Lanes<T>& y,
+                          const LaneWindow<T>& w, const Lanes<T>& depth, const Lanes<T>& d_alpha,
                           const Lanes<T> d_colour[3], const Lanes<T>& d_depth,
                           const Lanes<T> d_normal[3], LaneGrads<T>& acc) {
   using V = Lanes<T>;
@@ -152,7 +164,6 @@ inline void pair_backward(const T* p, const Lanes<T>& x, T y, const LaneWindow<T
   const V is_1 = and_not(first_is_1, is_2);
   V d_l[3] = {select(is_1 | is_2, zero, d_m), select(is_1, d_m, zero), select(is_2, d_m, zero)};
   const V d_inv = zero - depth * depth * d_depth;
-  const V vy(y);
   for (int j = 0; j < 3; ++j) {
     for (int c = 0; c < 3; ++c) {
       g[kColor + 3 * j + c] = g[kColor + 3 * j + c] + w.l[j] * d_colour[c];
@@ -161,7 +172,7 @@ inline void pair_backward(const T* p, const Lanes<T>& x, T y, const LaneWindow<T
     g[kInvDepth + j] = g[kInvDepth + j] + w.l[j] * d_inv;
     d_l[j] = d_l[j] + param(p, kInvDepth + j) * d_inv;
     g[kLine + 3 * j] = g[kLine + 3 * j] + d_l[j] * x;
-    g[kLine + 3 * j + 1] = g[kLine + 3 * j + 1] + d_l[j] * vy;
+    g[kLine + 3 * j + 1] = g[kLine + 3 * j + 1] + d_l[j] * y;
     g[kLine + 3 * j + 2] = g[kLine + 3 * j + 2] + d_l[j];
   }
   for (int c = 0; c < 3; ++c) g[kNormal + c] = g[kNormal + c] + d_normal[c];
