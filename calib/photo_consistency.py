@@ -29,9 +29,10 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 from scipy.optimize import minimize
+from scipy.stats import t as student_t
 
 from calib.lidar_map import LidarMap
-from calib.targetless import ExtrinsicResult, apply_increment, working_image, working_pixels
+from calib.targetless import NORMAL_95, ExtrinsicResult, apply_increment, working_image, working_pixels
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.transforms import invert, transform_points
@@ -340,6 +341,13 @@ def _hessian(cost: Callable[[np.ndarray], float], x: np.ndarray, step: np.ndarra
     return hessian
 
 
+def jackknife_interval_95(groups: int) -> float:
+    """Half-width of a 95 % interval in jackknife standard deviations from ``groups`` groups: the
+    variance has ``groups - 1`` degrees of freedom, so Student's t quantile (2.78 for 5 groups),
+    not the normal 1.96."""
+    return float(student_t.ppf(0.975, groups - 1))
+
+
 def _covariance(problem: _Problem, params: _Parameters, y: np.ndarray) -> np.ndarray:
     """Covariance ``(6, 6)`` of the increment ``basis @ y`` (degrees, decimetres; nothing along
     the axes the basis leaves out): a jackknife over :data:`JACKKNIFE_GROUPS` stretches of
@@ -569,6 +577,7 @@ def photo_consistency_extrinsic(
     cost_init, cost_final = problem.cost(T_init, obs), problem.cost(T_best, obs)
     std = np.sqrt(np.maximum(np.diag(_covariance(problem, params, y)), 0.0))
     rot_std, trans_std = float(np.linalg.norm(std[:3])), float(np.linalg.norm(std[3:])) / 10.0
+    interval_95 = jackknife_interval_95(min(JACKKNIFE_GROUPS, len(frames)))
     reasons = []
     if travel_cam is not None:
         reasons.append(
@@ -615,7 +624,9 @@ def photo_consistency_extrinsic(
     if travel_cam is not None:
         extra["kept_from_guess"] = {"travel_direction_cam": travel_cam.tolist()}
     verdict = "poorly constrained" if reasons else "ok"
-    return _result(params.pose(y), T_init, verdict, reasons, (rot_std, trans_std), extra, n_points, method)
+    return _result(
+        params.pose(y), T_init, verdict, reasons, (rot_std, trans_std), extra, n_points, method, interval_95
+    )
 
 
 def _result(
@@ -627,6 +638,7 @@ def _result(
     extra: dict,
     n_points: int,
     method: str,
+    interval_95: float = NORMAL_95,
 ) -> ExtrinsicResult:
     return ExtrinsicResult(
         T_cam_lidar=T.copy(),
@@ -641,4 +653,5 @@ def _result(
         n_edge_points=0,
         method=method,
         extra=extra,
+        interval_95=interval_95,
     )

@@ -52,6 +52,8 @@ EDGE_WEIGHTS = (0.3, 1.0)
 LOCAL_ROT_DEG = 0.5
 LOCAL_TRANS_DM = 1.5
 BOOTSTRAP_RUNS = 4
+#: A normal distribution's 95 % interval, in standard deviations.
+NORMAL_95 = 1.96
 #: Verdict thresholds on the spread between data halves: half the accuracy we aim for, because
 #: halves share the data's biases (on real data the spread underestimates the error).
 MIN_POINTS = 1000
@@ -84,6 +86,9 @@ class ExtrinsicResult:
     n_edge_points: int
     method: str = "targetless (edges + mutual information)"
     extra: dict[str, Any] = field(default_factory=dict)
+    #: Half-width of the 95 % interval in reported standard deviations: a normal quantile, or
+    #: Student's t where the spread comes from a handful of groups (a jackknife).
+    interval_95: float = NORMAL_95
 
     def change_from_init(self) -> tuple[float, float]:
         """Rotation (degrees) and translation (metres) between the result and the initial guess."""
@@ -100,6 +105,8 @@ class ExtrinsicResult:
             "method": self.method,
             "rotation_std_deg": self.rotation_std_deg,
             "translation_std_m": self.translation_std_m,
+            "rotation_interval_95_deg": self.interval_95 * self.rotation_std_deg,
+            "translation_interval_95_m": self.interval_95 * self.translation_std_m,
             "change_from_init_deg": rot,
             "change_from_init_m": trans,
             "mutual_information": self.mutual_information,

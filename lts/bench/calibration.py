@@ -34,8 +34,6 @@ from rig.transforms import distance_and_angle, make_transform
 #: bounds beyond which an ``ok`` verdict counts as given while wrong.
 SUCCESS_DEG = 0.5
 SUCCESS_M = 0.05
-#: The reported spreads are one standard deviation; the 95 % interval is this many of them.
-INTERVAL_95 = 1.96
 NO_GUESS = "none"
 DEFAULT_GUESSES = ("0/0", "2/10", "10/30", NO_GUESS)
 #: The source names of the KITTI object-layout frames and the nuScenes sample's cameras in the table.
@@ -124,12 +122,13 @@ def _trial(
         "reasons": result.reasons,
         "rotation_std_deg": result.rotation_std_deg,
         "translation_std_m": result.translation_std_m,
+        "interval_95": result.interval_95,
         "success": within,
         "false_ok": result.verdict == "ok" and not within,
         # A trial without an interval (axes kept from the guess: infinite spread) covers nothing.
         "covered": bool(
-            rotation_deg <= INTERVAL_95 * result.rotation_std_deg
-            and translation_m <= INTERVAL_95 * result.translation_std_m
+            rotation_deg <= result.interval_95 * result.rotation_std_deg
+            and translation_m <= result.interval_95 * result.translation_std_m
         )
         if np.isfinite(result.rotation_std_deg) and np.isfinite(result.translation_std_m)
         else None,

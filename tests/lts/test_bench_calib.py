@@ -52,6 +52,12 @@ def test_bench_scores_each_guess_against_the_truth(tmp_path):
             continue
         assert row["success"] == (row["rotation_error_deg"] <= 0.5 and row["translation_error_m"] <= 0.05)
         assert row["false_ok"] == (row["verdict"] == "ok" and not row["success"])
+        if row["covered"] is not None:  # the method's own 95 % interval, in its standard deviations
+            reach = row["interval_95"]
+            assert row["covered"] == (
+                row["rotation_error_deg"] <= reach * row["rotation_std_deg"]
+                and row["translation_error_m"] <= reach * row["translation_std_m"]
+            )
     summary = result["summary"]["room"]
     assert summary["0°/0 cm"]["trials"] == 1
     assert json.loads((tmp_path / "bench_calib.json").read_text())["rows"] == json.loads(json.dumps(rows))
