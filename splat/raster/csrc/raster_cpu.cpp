@@ -81,6 +81,12 @@ inline int tile_index(int x, int y) {
   return block * lane_count<T>() + (y % height) * kBlockWidth + x % kBlockWidth;
 }
 
+// Sets the bit of tile pixel i (tile_index) in the tile's per-block masks of live pixels.
+template <typename T>
+inline void mark_live(uint32_t* live, int i) {
+  live[i / lane_count<T>()] |= 1u << (i % lane_count<T>());
+}
+
 // Offset of each lane's pixel from its block's first pixel, along x (`rows` false) or y.
 template <typename T>
 inline Lanes<T> lane_offsets(bool rows) {
@@ -261,10 +267,7 @@ void forward_tile(int tile, const Bins& b, const T* params, T* rgb, T* depth, T*
   s.reset();
   uint32_t live[tile_blocks<T>()] = {};
   for (int y = 0; y < th; ++y) {
-    for (int x = 0; x < tw; ++x) {
-      const int i = tile_index<T>(x, y);
-      live[i / lane_count<T>()] |= 1u << (i % lane_count<T>());
-    }
+    for (int x = 0; x < tw; ++x) mark_live<T>(live, tile_index<T>(x, y));
   }
   int active = tw * th;
   for (int64_t e = b.tile_offsets[tile]; e < b.tile_offsets[tile + 1] && active > 0; ++e) {
@@ -407,7 +410,7 @@ void backward_tile(int tile, const Bins& b, const T* params, const T* alpha, con
     const int32_t slot = b.tile_slots[e];
     T g[kGrads] = {};
     for (; joined < kTilePixels && px.last_entry[joins[joined]] >= e; ++joined) {
-      live[joins[joined] / lane_count<T>()] |= 1u << (joins[joined] % lane_count<T>());
+      mark_live<T>(live, joins[joined]);
     }
     const int median_first = median_next;
     for (; median_next < kTilePixels && px.median_entry[medians[median_next]] == e; ++median_next) {
