@@ -42,7 +42,8 @@ class DynamicConfig:
             own by ``max(margin_m, margin_relative * range)``.
         min_votes: sweeps that must see through a point (fewer if fewer were compared).
         grow_m, grow_support: a point of a sweep whose neighbours within ``grow_m`` are at
-            least ``grow_support`` dynamic is dynamic too, unless on the ground (0 m: no growth).
+            least ``grow_support`` (a share above 0) dynamic is dynamic too, unless on the ground
+            (0 m: no growth).
         ground_cell_m, ground_band_m: a point is on the ground where it lies less than
             ``ground_band_m`` above the lowest point of the sweep in its ``ground_cell_m`` cell of the
             sensor's x-y plane or the eight around it. The sensor's z axis must point roughly up
@@ -155,13 +156,17 @@ def grown(points_sensor: np.ndarray, seeds: np.ndarray, config: DynamicConfig) -
     near = near[~on_ground(points_sensor, config)[near]]
     around = np.all((points_sensor >= low - config.grow_m) & (points_sensor <= high + config.grow_m), axis=1)
 
-    def neighbours(of: np.ndarray) -> np.ndarray:
-        return cKDTree(points_sensor[of]).query_ball_point(
-            points_sensor[near], config.grow_m, return_length=True
-        )
+    def neighbours(of: np.ndarray, at: np.ndarray) -> np.ndarray:
+        """How many of the points ``of`` lie within ``grow_m`` of each of the points ``at``."""
+        tree = cKDTree(points_sensor[of])
+        return tree.query_ball_point(points_sensor[at], config.grow_m, return_length=True)
 
+    # Only points with a seed within reach can join (the room's sweeps: a few stray seeds, and
+    # counting all their thousands of neighbours took most of the time).
+    support = neighbours(seeds, near)
+    near, support = near[support > 0], support[support > 0]
     out = seeds.copy()
-    out[near[neighbours(seeds) >= config.grow_support * neighbours(around)]] = True
+    out[near[support >= config.grow_support * neighbours(around, near)]] = True
     return out
 
 
