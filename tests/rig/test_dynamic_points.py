@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import trimesh
+from scipy.spatial.distance import cdist
 
 from rig.dynamic_points import DynamicConfig, comparison_sweeps, dynamic_mask, grown, on_ground, sweep_view
 from rig.sim.movers import Mover, MovingRaycaster, inside_movers
@@ -116,13 +117,13 @@ def test_growth_is_the_share_of_seeds_among_the_neighbours() -> None:
     """Off the ground, a point joins exactly where at least ``grow_support`` of its neighbours
     within ``grow_m`` (itself included) are seeds: the brute-force count over all pairs."""
     rng = np.random.default_rng(3)
-    points = rng.uniform((0.0, -3.0, -1.2), (6.0, 3.0, 1.0), (3000, 3))
-    seeds = (np.linalg.norm(points[:, :2] - (3.0, 0.0), axis=1) < 0.7) & (rng.random(3000) < 0.4)
-    seeds[rng.choice(3000, 5, replace=False)] = True  # strays, as a static room's sweeps have
+    points = rng.uniform((0.0, -3.0, -1.2), (6.0, 3.0, 1.0), (2000, 3))
+    seeds = (np.linalg.norm(points[:, :2] - (3.0, 0.0), axis=1) < 0.7) & (rng.random(2000) < 0.4)
+    seeds[rng.choice(2000, 5, replace=False)] = True  # strays, as a static room's sweeps have
     config = DynamicConfig()
-    near_pairs = np.linalg.norm(points[:, None] - points[None], axis=2) <= config.grow_m
+    near_pairs = cdist(points, points) <= config.grow_m
     share = (near_pairs & seeds[None]).sum(axis=1) / near_pairs.sum(axis=1)
     grows = ~seeds & (share >= config.grow_support) & ~on_ground(points, config)
     dynamic = grown(points, seeds, config)
     assert (grows & ~dynamic).sum() == 0 and (dynamic & ~seeds & ~grows).sum() == 0
-    assert grows.sum() > 50  # the test is not empty
+    assert grows.sum() > 30  # the test is not empty
