@@ -341,6 +341,11 @@ def _hessian(cost: Callable[[np.ndarray], float], x: np.ndarray, step: np.ndarra
     return hessian
 
 
+def _jackknife_groups(n_frames: int) -> int:
+    """How many stretches the jackknife splits ``n_frames`` frames into."""
+    return min(JACKKNIFE_GROUPS, n_frames)
+
+
 def jackknife_interval_95(groups: int) -> float:
     """Half-width of a 95 % interval in jackknife standard deviations from ``groups`` groups: the
     variance has ``groups - 1`` degrees of freedom, so Student's t quantile (2.78 for 5 groups),
@@ -364,7 +369,7 @@ def _covariance(problem: _Problem, params: _Parameters, y: np.ndarray) -> np.nda
     # Only the curvature that holds the estimate: a direction the cost does not curve up in
     # moves nothing (it shows in the other stretches' steps instead).
     inverse = vectors @ np.diag(np.where(values > 0, 1 / np.maximum(values, 1e-12), 0.0)) @ vectors.T
-    groups = np.array_split(every, min(JACKKNIFE_GROUPS, len(every)))
+    groups = np.array_split(every, _jackknife_groups(len(every)))
     steps = []
     for group in groups:
         obs = problem.observations(params.pose(y), np.setdiff1d(every, group))
@@ -577,7 +582,7 @@ def photo_consistency_extrinsic(
     cost_init, cost_final = problem.cost(T_init, obs), problem.cost(T_best, obs)
     std = np.sqrt(np.maximum(np.diag(_covariance(problem, params, y)), 0.0))
     rot_std, trans_std = float(np.linalg.norm(std[:3])), float(np.linalg.norm(std[3:])) / 10.0
-    interval_95 = jackknife_interval_95(min(JACKKNIFE_GROUPS, len(frames)))
+    interval_95 = jackknife_interval_95(_jackknife_groups(len(frames)))
     reasons = []
     if travel_cam is not None:
         reasons.append(

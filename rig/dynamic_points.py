@@ -164,7 +164,8 @@ def grown(points_sensor: np.ndarray, seeds: np.ndarray, config: DynamicConfig) -
     # Only points with a seed within reach can join (the room's sweeps: a few stray seeds, and
     # counting all their thousands of neighbours took most of the time).
     support = neighbours(seeds, near)
-    near, support = near[support > 0], support[support > 0]
+    reached = support > 0
+    near, support = near[reached], support[reached]
     out = seeds.copy()
     out[near[support >= config.grow_support * neighbours(around, near)]] = True
     return out
