@@ -17,7 +17,11 @@ A held-out image's own map is not known to training, but a camera's exposure dri
 in time, and so do the maps (on the virtual street without exposure changes they took up a
 smooth drift of up to 9 % over the drive): a test view gets the map interpolated in time between
 the training views before and after it, when that predicts the training views' own maps better
-than the identity does (each left out in turn; :func:`held_out_maps`), else the identity.
+than the identity does (each left out in turn; :func:`held_out_maps`). Where it does not (a gain
+that jumps from frame to frame), the test image's gain is measured against the nearest training
+image's on the LiDAR points both see (:func:`log_gain`, as a camera's metadata would tell it,
+from the images alone and not the render) and its map is that image's scaled by it; the
+identity where it cannot be measured.
 Exported meshes keep the triangles' own colours. ``lts eval`` applies the test views' maps
 (``RUN_DIR/exposure.json``) and reports, beside that PSNR, one after fitting each test view's
 colour matrix to its image (:func:`eval.photometric.color_aligned`), the same for every method.
@@ -37,6 +41,10 @@ from splat.camera_only import in_view
 #: How the test views' maps were chosen (``exposure.json``'s ``test_views``).
 INTERPOLATED = "interpolated in time between the training views before and after"
 IDENTITY = "the identity (interpolation did not predict the training views' maps)"
+MEASURED = (
+    "the nearest training view's map scaled by the test image's gain against its image, measured on "
+    "the LiDAR points both see ({} of {} views; the identity for the rest)"
+)
 
 
 class ViewExposures:
@@ -111,41 +119,73 @@ def interpolation_predicts(offsets: Tensor, times: np.ndarray) -> bool:
 
 
 def held_out_maps(
-    exposures: ViewExposures, train_times: np.ndarray, test_times: np.ndarray
+    exposures: ViewExposures,
+    train_times: np.ndarray,
+    test_times: np.ndarray,
+    measured: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[Tensor, str]:
     """The colour matrices ``(Q, 3, 3)`` (``A``, not offsets) of held-out views at ``test_times``
-    ``(Q,)`` from the training views' maps (at ``train_times`` ``(V,)``), and how they were chosen
-    (:data:`INTERPOLATED` or :data:`IDENTITY`)."""
+    ``(Q,)`` from the training views' maps (at ``train_times`` ``(V,)``), and how they were chosen:
+    :data:`INTERPOLATED`; else, with ``measured`` (per held-out view the index of its nearest
+    training view ``(Q,)`` and the log of its image's gain against that view's ``(Q,)``, NaN where
+    not measured: :func:`log_gain`), :data:`MEASURED`; else :data:`IDENTITY`."""
     eye = torch.eye(3, dtype=exposures.offsets.dtype)
-    if not interpolation_predicts(exposures.offsets, train_times):
-        return eye.expand(len(test_times), 3, 3).clone(), IDENTITY
-    return eye + interpolated(exposures.offsets, train_times, test_times), INTERPOLATED
+    if interpolation_predicts(exposures.offsets, train_times):
+        return eye + interpolated(exposures.offsets, train_times, test_times), INTERPOLATED
+    identity = eye.expand(len(test_times), 3, 3).clone()
+    if measured is None or not np.isfinite(measured[1]).any():
+        return identity, IDENTITY
+    nearest, log_gains = measured
+    known = np.isfinite(log_gains)
+    gains = torch.as_tensor(np.exp(log_gains[known]), dtype=eye.dtype)[:, None, None]
+    identity[known] = gains * (eye + exposures.offsets.detach().cpu()[nearest[known]])
+    return identity, MEASURED.format(int(known.sum()), len(known))
+
+
+def log_gain(
+    before: np.ndarray,
+    after: np.ndarray,
+    points: np.ndarray,
+    camera,
+    T_world_before: np.ndarray,
+    T_world_after: np.ndarray,
+) -> float | None:
+    """Log brightness ratio of image ``after`` to image ``before`` (``(H, W, 3)`` RGB in [0, 1],
+    seen from ``T_world_before`` / ``T_world_after`` ``(4, 4)``) at ``points`` ``(M, 3)`` (the
+    camera-frame LiDAR returns of ``before``): the median over the points both images see of
+    ``log(grey_after / grey_before)``; None where fewer than :data:`MIN_SHARED_POINTS` are shared
+    or fewer than :data:`MIN_AGREEING_FRACTION` of them agree with it. A surface keeps its colour
+    from one image to the next, so what differs is the camera's gain."""
+    world = transform_points(T_world_before, points)
+    grey_before, grey_after = (
+        _sampled(image.mean(axis=2), world, camera, T)
+        for image, T in ((before, T_world_before), (after, T_world_after))
+    )
+    usable = np.isfinite(grey_before) & np.isfinite(grey_after) & (grey_before > 0.04) & (grey_after > 0.04)
+    usable &= (grey_before < 0.96) & (grey_after < 0.96)
+    if usable.sum() < MIN_SHARED_POINTS:
+        return None
+    logs = np.log(grey_after[usable] / grey_before[usable])
+    median = float(np.median(logs))
+    # A gain moves every point alike; points the next image sees something else at (an
+    # occluder, a turn) scatter, and can pull the median of a few pairs far off.
+    if np.mean(np.abs(logs - median) <= GAIN_AGREEMENT) < MIN_AGREEING_FRACTION:
+        return None
+    return median
 
 
 def neighbour_gains(
     images: list[np.ndarray], lidar_points: list[np.ndarray], poses_world_cam: np.ndarray, camera
 ) -> np.ndarray:
-    """``(K - 1,)`` log brightness ratio of each image to the one before, from the LiDAR points of
-    the one before that both see (``images``: ``(H, W, 3)`` RGB in [0, 1] in time order;
-    ``lidar_points``: each image's camera-frame returns ``(M, 3)``; ``poses_world_cam`` ``(K, 4, 4)``):
-    the median over those points of ``log(grey_after / grey_before)``, 0 where fewer than
-    :data:`MIN_SHARED_POINTS` are shared or fewer than :data:`MIN_AGREEING_FRACTION` of them agree
-    with it. A surface keeps its colour from one image to the next, so what differs is the
-    camera's gain."""
-    grey = [image.mean(axis=2) for image in images]
+    """``(K - 1,)`` :func:`log_gain` of each image to the one before (``images``: ``(H, W, 3)`` RGB in
+    [0, 1] in time order; ``lidar_points``: each image's camera-frame returns ``(M, 3)``;
+    ``poses_world_cam`` ``(K, 4, 4)``), 0 where it cannot be measured."""
     ratios = np.zeros(max(len(images) - 1, 0))
     for i in range(len(ratios)):
-        world = transform_points(poses_world_cam[i], lidar_points[i])
-        before, after = (_sampled(grey[j], world, camera, poses_world_cam[j]) for j in (i, i + 1))
-        usable = np.isfinite(before) & np.isfinite(after) & (before > 0.04) & (after > 0.04)
-        usable &= (before < 0.96) & (after < 0.96)
-        if usable.sum() >= MIN_SHARED_POINTS:
-            logs = np.log(after[usable] / before[usable])
-            median = float(np.median(logs))
-            # A gain moves every point alike; points the next image sees something else at (an
-            # occluder, a turn) scatter, and can pull the median of a few pairs far off.
-            if np.mean(np.abs(logs - median) <= GAIN_AGREEMENT) >= MIN_AGREEING_FRACTION:
-                ratios[i] = median
+        gain = log_gain(
+            images[i], images[i + 1], lidar_points[i], camera, poses_world_cam[i], poses_world_cam[i + 1]
+        )
+        ratios[i] = 0.0 if gain is None else gain
     return ratios
 
 

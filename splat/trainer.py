@@ -26,7 +26,14 @@ from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.coarse_views import coarse_iterations, half_camera, half_view
 from splat.config import TrainConfig, load_config
-from splat.exposure import GAIN_SPREAD_LIMIT, ViewExposures, gain_spread, held_out_maps, neighbour_gains
+from splat.exposure import (
+    GAIN_SPREAD_LIMIT,
+    ViewExposures,
+    gain_spread,
+    held_out_maps,
+    log_gain,
+    neighbour_gains,
+)
 from splat.finite import all_finite
 from splat.held_out_views import evaluate_views, load_held_out_views, mark_background, write_renders
 from splat.initialise import build_model, initial_triangles
@@ -142,6 +149,7 @@ class Trainer:
         self.log = log
         self.state = _State()
         self.exposures: ViewExposures | None = None
+        self._test_gains: tuple[np.ndarray, np.ndarray] | None = None
         self.poses: PoseCorrections | None = None
         # The coarse start (splat.coarse_views): how many iterations, the camera and the views of it.
         self._coarse_iterations = coarse_iterations(self.scene.camera, config)
@@ -406,12 +414,34 @@ class Trainer:
         returns how they were chosen (None without maps or test views)."""
         if self.exposures is None or not self.test_views:
             return None
-        maps, rule = held_out_maps(
-            self.exposures, _seconds(self.train_keyframes), _seconds(self.test_keyframes)
-        )
+        train_times, test_times = _seconds(self.train_keyframes), _seconds(self.test_keyframes)
+        if self._test_gains is None:
+            self._test_gains = self._measured_test_gains(train_times, test_times)
+        maps, rule = held_out_maps(self.exposures, train_times, test_times, self._test_gains)
         for view, matrix in zip(self.test_views, maps, strict=True):
             view.color_map = matrix.to(self.config.device)
         return rule
+
+    def _measured_test_gains(
+        self, train_times: np.ndarray, test_times: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Per test view (at ``test_times`` ``(Q,)`` s) the index of the training view nearest in
+        time (``train_times`` ``(V,)``) and the log of its image's gain against that view's,
+        measured on that view's LiDAR points (:func:`log_gain`; NaN where it cannot be)."""
+        nearest = np.abs(test_times[:, None] - train_times[None, :]).argmin(axis=1)
+        gains = []
+        for view, keyframe, j in zip(self.test_views, self.test_keyframes, nearest, strict=True):
+            train = self.train_keyframes[j]
+            gain = log_gain(
+                self.train_views[j].image.cpu().numpy(),
+                view.image.cpu().numpy(),
+                self.scene.lidar(train).points.astype(np.float64),
+                self.scene.camera,
+                train.T_world_cam,
+                keyframe.T_world_cam,
+            )
+            gains.append(np.nan if gain is None else gain)
+        return nearest, np.array(gains)
 
     def _write_color_maps(self) -> dict:
         """``RUN_DIR/exposure.json``: every keyframe's colour map and how the test views' were chosen;

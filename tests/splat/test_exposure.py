@@ -14,7 +14,7 @@ from training_scene import write_training_scene
 from eval.photometric import color_aligned, psnr
 from rig.errors import InputError
 from splat.config import make_config
-from splat.exposure import IDENTITY, INTERPOLATED, ViewExposures, held_out_maps
+from splat.exposure import IDENTITY, INTERPOLATED, MEASURED, ViewExposures, held_out_maps
 from splat.run_dir import read_color_maps
 from splat.trainer import Trainer, train
 
@@ -72,7 +72,12 @@ def test_training_learns_each_views_gain_and_keeps_the_common_appearance(exposed
     assert without.exposure == {}
     assert read_color_maps(tmp_path / "plain") == ({}, None)
     maps, rule = read_color_maps(tmp_path / "maps")
-    assert sorted(maps) == [f"{i:06d}" for i in range(6)] and rule in (INTERPOLATED, IDENTITY)
+    assert sorted(maps) == [f"{i:06d}" for i in range(6)]
+    # The gains jump from image to image, so the test view's (recorded at gain 1) is measured
+    # against its nearest training image's, not interpolated.
+    assert rule == MEASURED.format(1, 1)
+    test_gain = np.mean(np.diag(maps["000005"]))
+    assert test_gain / float(gains.mean()) == pytest.approx(1 / np.mean(GAINS), abs=0.06)
     # With a map per view the triangles fit every differently exposed image, not their average.
     last_l1 = [json.loads((tmp_path / run / "metrics.jsonl").read_text().splitlines()[-1])["loss"]["l1"]
                for run in ("maps", "plain")]  # fmt: skip
@@ -121,6 +126,12 @@ def test_held_out_views_get_the_interpolated_map_when_it_predicts_the_training_v
     jumps[:, 1, 1] = torch.tensor([0.2, -0.2, 0.2, -0.2, 0.2, -0.2])
     maps, rule = held_out_maps(ViewExposures(jumps), times, np.array([2.5]))
     assert rule == IDENTITY and torch.equal(maps[0], torch.eye(3))
+    # With each held-out image's gain measured against its nearest training image: that image's
+    # map scaled by it; the identity where it could not be measured.
+    measured = (np.array([2, 3]), np.array([np.log(1.5), np.nan]))
+    maps, rule = held_out_maps(ViewExposures(jumps), times, np.array([2.4, 2.6]), measured)
+    assert rule == MEASURED.format(1, 2)
+    assert torch.allclose(maps[0], 1.5 * (torch.eye(3) + jumps[2])) and torch.equal(maps[1], torch.eye(3))
 
 
 def test_a_malformed_exposure_file_names_itself(tmp_path):
