@@ -33,6 +33,12 @@ MAX_DEGREE = 3
 #: The map's grids (rows, columns), coarse to fine: 11.25°, 2.8° and 0.7° texels.
 MAP_LEVELS = ((16, 32), (64, 128), (256, 512))
 MAP_TEXELS = sum(rows * columns for rows, columns in MAP_LEVELS)
+#: Fewer directions than this read only the texels around them (:func:`map_values`): a room's
+#: training view shows the background at a few pixels, and building, padding and sampling the
+#: 256×512 grid for them cost more than the rest of the background; many directions (a street's
+#: sky) sample the whole grids, whose gradient is one scatter per grid instead of twelve rows per
+#: direction.
+GATHER_BELOW = 8192
 _C0 = 0.28209479177387814
 _C1 = 0.4886025119029199
 _C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
@@ -92,10 +98,13 @@ def sh_basis(directions: Tensor, degree: int) -> Tensor:
 
 def map_values(texels: Tensor, directions: Tensor) -> Tensor:
     """The map of ``texels`` ``(MAP_TEXELS, 3)`` along unit world ``directions`` ``(N, 3)``: the sum
-    of its levels sampled bilinearly ``(N, 3)``, continuous across azimuth ±180°."""
+    of its levels sampled bilinearly ``(N, 3)`` at texel centres (``F.grid_sample``'s
+    ``align_corners=False``, the rows clamped at the poles), continuous across azimuth ±180°."""
     x, y, z = directions.unbind(-1)
     azimuth = torch.atan2(y, x) / math.pi  # [-1, 1] across each grid's columns
     elevation = -torch.asin(z.clamp(-1.0, 1.0)) / (math.pi / 2)  # -1: up, the grid's first row
+    if len(directions) < GATHER_BELOW:
+        return _gathered_map_values(texels, azimuth, elevation)
     values, start = torch.zeros_like(directions), 0
     for rows, columns in MAP_LEVELS:
         grid = texels[start : start + rows * columns].T.reshape(1, 3, rows, columns)
@@ -106,6 +115,25 @@ def map_values(texels: Tensor, directions: Tensor) -> Tensor:
         sampled = F.grid_sample(wrapped, at[None, None], padding_mode="border", align_corners=False)
         values = values + sampled[0, :, 0].T
     return values
+
+
+def _gathered_map_values(texels: Tensor, azimuth: Tensor, elevation: Tensor) -> Tensor:
+    """:func:`map_values` at ``azimuth`` and ``elevation`` ``(N,)`` (in [-1, 1], as there) from the
+    four texels of each level around each direction only, read in one gather."""
+    indices, weights, start = [], [], 0
+    for rows, columns in MAP_LEVELS:
+        u = (azimuth + 1) * (columns / 2) - 0.5  # texel-centre coordinates: column c at u = c
+        v = (((elevation + 1) * rows - 1) / 2).clamp(0, rows - 1)
+        u0, v0 = u.floor(), v.floor()
+        fu, fv = u - u0, v - v0
+        left, right = u0.long() % columns, (u0.long() + 1) % columns  # the map closes at ±180°
+        top = start + v0.long() * columns
+        bottom = start + (v0.long() + 1).clamp(max=rows - 1) * columns
+        indices += [top + left, top + right, bottom + left, bottom + right]
+        weights += [(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv]
+        start += rows * columns
+    corners = texels[torch.stack(indices, dim=1)]  # (N, 4 * levels, 3)
+    return (corners * torch.stack(weights, dim=1)[..., None]).sum(dim=1)
 
 
 def background_rgb(coefficients: Tensor, directions: Tensor) -> Tensor:

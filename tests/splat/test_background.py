@@ -199,6 +199,28 @@ def test_the_map_adds_to_the_harmonics_and_closes_at_azimuth_180():
     assert float(texels.grad[start + row * columns + column].sum()) == pytest.approx(3.0)
 
 
+def test_few_directions_read_only_their_texels_and_sample_as_the_whole_grids_do(monkeypatch):
+    import splat.background as background
+
+    directions = torch.nn.functional.normalize(torch.randn(300, 3, dtype=torch.float64), dim=1)
+    # The seam at azimuth ±180° and the clamped rows at the poles.
+    seam = _azimuth_elevation(
+        torch.tensor([180.0, -180.0, 179.9, 0.0, 0.0]), torch.tensor([0.0, 30.0, -89.9, 90.0, -90.0])
+    )
+    directions = torch.cat([directions, seam.double()]).requires_grad_(True)
+    texels = torch.randn(MAP_TEXELS, 3, dtype=torch.float64, requires_grad=True)
+    results = []
+    for below in (len(directions) + 1, 0):  # gathered, then the whole grids sampled
+        monkeypatch.setattr(background, "GATHER_BELOW", below)
+        value = map_values(texels, directions)
+        gradients = torch.autograd.grad(
+            (value * torch.arange(3.0, dtype=torch.float64)).sum(), (texels, directions)
+        )
+        results.append((value, *gradients))
+    for gathered, sampled in zip(*results, strict=True):
+        torch.testing.assert_close(gathered, sampled)
+
+
 def test_the_map_learns_a_roofline_the_harmonics_blur():
     # Sky above a skyline that steps from 10° to 30° high at azimuth 90°: a sharp edge.
     grid = torch.meshgrid(torch.linspace(60, 120, 120), torch.linspace(0, 50, 100), indexing="ij")
