@@ -132,7 +132,10 @@ def _gathered_map_values(texels: Tensor, azimuth: Tensor, elevation: Tensor) -> 
         indices += [top + left, top + right, bottom + left, bottom + right]
         weights += [(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv]
         start += rows * columns
-    corners = texels[torch.stack(indices, dim=1)]  # (N, 4 * levels, 3)
+    # index_select's gradient is index_add_, which sums repeated texels in a fixed order (plain
+    # indexing's accumulating scatter did not, and a resumed run lost its bit-for-bit result).
+    index = torch.stack(indices, dim=1)  # (N, 4 * levels)
+    corners = texels.index_select(0, index.reshape(-1)).view(*index.shape, 3)
     return (corners * torch.stack(weights, dim=1)[..., None]).sum(dim=1)
 
 
