@@ -132,14 +132,14 @@ def held_out_maps(
     eye = torch.eye(3, dtype=exposures.offsets.dtype)
     if interpolation_predicts(exposures.offsets, train_times):
         return eye + interpolated(exposures.offsets, train_times, test_times), INTERPOLATED
-    identity = eye.expand(len(test_times), 3, 3).clone()
+    maps = eye.expand(len(test_times), 3, 3).clone()
     if measured is None or not np.isfinite(measured[1]).any():
-        return identity, IDENTITY
+        return maps, IDENTITY
     nearest, log_gains = measured
     known = np.isfinite(log_gains)
     gains = torch.as_tensor(np.exp(log_gains[known]), dtype=eye.dtype)[:, None, None]
-    identity[known] = gains * (eye + exposures.offsets.detach().cpu()[nearest[known]])
-    return identity, MEASURED.format(int(known.sum()), len(known))
+    maps[known] = gains * (eye + exposures.offsets.detach().cpu()[nearest[known]])
+    return maps, MEASURED.format(int(known.sum()), len(known))
 
 
 def log_gain(
