@@ -126,4 +126,4 @@ def test_growth_is_the_share_of_seeds_among_the_neighbours() -> None:
     grows = ~seeds & (share >= config.grow_support) & ~on_ground(points, config)
     dynamic = grown(points, seeds, config)
     assert (grows & ~dynamic).sum() == 0 and (dynamic & ~seeds & ~grows).sum() == 0
-    assert grows.sum() > 30  # the test is not empty
+    assert grows.sum() > 50  # the test is not empty
