@@ -142,6 +142,11 @@ def held_out_maps(
     return maps, MEASURED.format(int(known.sum()), len(known))
 
 
+def grey(image: np.ndarray) -> np.ndarray:
+    """The grey level ``(H, W)`` of an RGB image ``(H, W, 3)``: the mean of its channels."""
+    return image.mean(axis=2)
+
+
 def log_gain(
     before: np.ndarray,
     after: np.ndarray,
@@ -150,16 +155,16 @@ def log_gain(
     T_world_before: np.ndarray,
     T_world_after: np.ndarray,
 ) -> float | None:
-    """Log brightness ratio of image ``after`` to image ``before`` (``(H, W, 3)`` RGB in [0, 1],
-    seen from ``T_world_before`` / ``T_world_after`` ``(4, 4)``) at ``points`` ``(M, 3)`` (the
-    camera-frame LiDAR returns of ``before``): the median over the points both images see of
-    ``log(grey_after / grey_before)``; None where fewer than :data:`MIN_SHARED_POINTS` are shared
-    or fewer than :data:`MIN_AGREEING_FRACTION` of them agree with it. A surface keeps its colour
-    from one image to the next, so what differs is the camera's gain."""
+    """Log brightness ratio of grey image ``after`` to grey image ``before`` (``(H, W)`` in [0, 1],
+    :func:`grey`; seen from ``T_world_before`` / ``T_world_after`` ``(4, 4)``) at ``points``
+    ``(M, 3)`` (the camera-frame LiDAR returns of ``before``): the median over the points both
+    images see of ``log(grey_after / grey_before)``; None where fewer than
+    :data:`MIN_SHARED_POINTS` are shared or fewer than :data:`MIN_AGREEING_FRACTION` of them agree
+    with it. A surface keeps its colour from one image to the next, so what differs is the
+    camera's gain."""
     world = transform_points(T_world_before, points)
     grey_before, grey_after = (
-        _sampled(image.mean(axis=2), world, camera, T)
-        for image, T in ((before, T_world_before), (after, T_world_after))
+        _sampled(image, world, camera, T) for image, T in ((before, T_world_before), (after, T_world_after))
     )
     usable = np.isfinite(grey_before) & np.isfinite(grey_after) & (grey_before > 0.04) & (grey_after > 0.04)
     usable &= (grey_before < 0.96) & (grey_after < 0.96)
@@ -180,10 +185,11 @@ def neighbour_gains(
     """``(K - 1,)`` :func:`log_gain` of each image to the one before (``images``: ``(H, W, 3)`` RGB in
     [0, 1] in time order; ``lidar_points``: each image's camera-frame returns ``(M, 3)``;
     ``poses_world_cam`` ``(K, 4, 4)``), 0 where it cannot be measured."""
+    greys = [grey(image) for image in images]
     ratios = np.zeros(max(len(images) - 1, 0))
     for i in range(len(ratios)):
         gain = log_gain(
-            images[i], images[i + 1], lidar_points[i], camera, poses_world_cam[i], poses_world_cam[i + 1]
+            greys[i], greys[i + 1], lidar_points[i], camera, poses_world_cam[i], poses_world_cam[i + 1]
         )
         ratios[i] = 0.0 if gain is None else gain
     return ratios

@@ -30,6 +30,7 @@ from splat.exposure import (
     GAIN_SPREAD_LIMIT,
     ViewExposures,
     gain_spread,
+    grey,
     held_out_maps,
     log_gain,
     neighbour_gains,
@@ -433,8 +434,8 @@ class Trainer:
         for view, keyframe, j in zip(self.test_views, self.test_keyframes, nearest, strict=True):
             train = self.train_keyframes[j]
             gain = log_gain(
-                self.train_views[j].image.cpu().numpy(),
-                view.image.cpu().numpy(),
+                grey(self.train_views[j].image.cpu().numpy()),
+                grey(view.image.cpu().numpy()),
                 self.scene.lidar(train).points.astype(np.float64),
                 self.scene.camera,
                 train.T_world_cam,
