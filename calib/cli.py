@@ -228,8 +228,9 @@ def time_offset(
         emit_json(result.to_json())
         return
     console.print(
-        f"time offset {result.time_offset_s * 1e3:+.2f} ms ± {result.std_s * 1e3:.2f} ms "
-        f"(correlation {result.correlation:.2f}, {result.extra.get('lidar_motion')}): {result.verdict}"
+        f"time offset {result.time_offset_s * 1e3:+.2f} ms ± {result.std_s * 1e3:.2f} ms (1σ; 95 % within "
+        f"± {result.interval_95 * result.std_s * 1e3:.2f} ms, correlation {result.correlation:.2f}, "
+        f"{result.extra.get('lidar_motion')}): {result.verdict}"
         + ("" if not result.reasons else " (" + "; ".join(result.reasons) + ")")
     )
 

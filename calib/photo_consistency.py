@@ -29,10 +29,10 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 from scipy.optimize import minimize
-from scipy.stats import t as student_t
 
+from calib.intervals import NORMAL_95, jackknife_interval_95
 from calib.lidar_map import LidarMap
-from calib.targetless import NORMAL_95, ExtrinsicResult, apply_increment, working_image, working_pixels
+from calib.targetless import ExtrinsicResult, apply_increment, working_image, working_pixels
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.transforms import invert, transform_points
@@ -344,13 +344,6 @@ def _hessian(cost: Callable[[np.ndarray], float], x: np.ndarray, step: np.ndarra
 def _jackknife_groups(n_frames: int) -> int:
     """How many stretches the jackknife splits ``n_frames`` frames into."""
     return min(JACKKNIFE_GROUPS, n_frames)
-
-
-def jackknife_interval_95(groups: int) -> float:
-    """Half-width of a 95 % interval in jackknife standard deviations from ``groups`` groups: the
-    variance has ``groups - 1`` degrees of freedom, so Student's t quantile (2.78 for 5 groups),
-    not the normal 1.96."""
-    return float(student_t.ppf(0.975, groups - 1))
 
 
 def _covariance(problem: _Problem, params: _Parameters, y: np.ndarray) -> np.ndarray:

@@ -31,7 +31,7 @@ from calib.photo_consistency import (
     photo_consistency_extrinsic,
 )
 from calib.session_data import SessionData, frame_clouds, frame_times, load_session
-from calib.targetless import NORMAL_95, ExtrinsicPair, ExtrinsicResult, refine_extrinsic
+from calib.targetless import ExtrinsicPair, ExtrinsicResult, refine_extrinsic
 from calib.time_offset import MAX_OFFSET_S, TimeOffsetResult, estimate_time_offset
 from rig.calibration import Calibration
 from rig.camera import CameraModel
@@ -166,11 +166,12 @@ def consistency_frames(
 
 def offset_error(time_result: TimeOffsetResult, time_offset_s: float) -> float:
     """How far (s) the time offset ``time_offset_s`` a step uses may lie from the truth: its
-    distance from the estimate plus the estimate's 95 % interval (1.96 σ); the whole search range
+    distance from the estimate plus the estimate's 95 % interval (``interval_95`` σ); the whole search range
     (:data:`~calib.time_offset.MAX_OFFSET_S`) when the motion gave no estimate."""
     if not (np.isfinite(time_result.time_offset_s) and np.isfinite(time_result.std_s)):
         return MAX_OFFSET_S
-    return min(abs(time_result.time_offset_s - time_offset_s) + NORMAL_95 * time_result.std_s, MAX_OFFSET_S)
+    reach = time_result.interval_95 * time_result.std_s
+    return min(abs(time_result.time_offset_s - time_offset_s) + reach, MAX_OFFSET_S)
 
 
 def timing_reasons(

@@ -30,6 +30,7 @@ from scipy.optimize import OptimizeResult, least_squares
 from scipy.spatial.transform import Rotation
 
 from calib.boards import BoardView, ChessboardTarget, detect_chessboard, to_gray
+from calib.intervals import NORMAL_95, jackknife_interval_95
 from calib.targetless import ExtrinsicPair, ExtrinsicResult
 from rig.camera import CameraModel
 from rig.errors import InputError
@@ -276,9 +277,13 @@ def calibrate_with_board(
         cov = sigma2 * np.linalg.inv(jtj)
         rot_std = float(np.degrees(np.sqrt(np.trace(cov[:3, :3]))))
         trans_std = float(np.sqrt(np.trace(cov[3:, 3:])))
+    interval_95 = NORMAL_95
     if not reasons:
         jack_rot, jack_trans = _jackknife_std(fit.x, T0, poses, half_size)
         rot_std, trans_std = max(rot_std, jack_rot), max(trans_std, jack_trans)
+        # Student's t of the jackknife's few groups; where the Jacobian's spread is the larger
+        # (thousands of points: the normal 1.96) the interval comes out a little wide.
+        interval_95 = jackknife_interval_95(min(JACKKNIFE_GROUPS, len(poses)))
     if not reasons and (rot_std > MAX_ROT_STD_DEG or trans_std > MAX_TRANS_STD_M):
         reasons.append(
             f"uncertainty ±{rot_std:.3f}° ±{trans_std * 100:.2f} cm above "
@@ -298,6 +303,7 @@ def calibrate_with_board(
         n_edge_points=int(np.count_nonzero(outline.reshape(-1, 2).any(axis=1))),
         method="target-based (board planes)",
         extra={"poses_used": used, "plane_rms_m": rms, "normal_spread": spread},
+        interval_95=interval_95,
     )
 
 

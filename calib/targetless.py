@@ -33,6 +33,7 @@ from scipy.spatial.transform import Rotation
 
 from calib.boards import to_gray
 from calib.features import edge_field, lidar_edges
+from calib.intervals import NORMAL_95
 from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.pointcloud_io import PointCloud, read_point_cloud
@@ -52,8 +53,6 @@ EDGE_WEIGHTS = (0.3, 1.0)
 LOCAL_ROT_DEG = 0.5
 LOCAL_TRANS_DM = 1.5
 BOOTSTRAP_RUNS = 4
-#: A normal distribution's 95 % interval, in standard deviations.
-NORMAL_95 = 1.96
 #: Verdict thresholds on the spread between data halves: half the accuracy we aim for, because
 #: halves share the data's biases (on real data the spread underestimates the error).
 MIN_POINTS = 1000

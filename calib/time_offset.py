@@ -19,6 +19,7 @@ from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d
 from scipy.optimize import minimize_scalar
 
+from calib.intervals import NORMAL_95, jackknife_interval_95
 from rig.errors import InputError
 
 GRID_STEP_S = 0.005
@@ -41,7 +42,8 @@ JACKKNIFE_BLOCKS = 20
 
 @dataclass(eq=False)
 class TimeOffsetResult:
-    """The offset (s), its standard deviation (s) and the verdict with reasons."""
+    """The offset (s), its standard deviation (s) and the verdict with reasons; ``interval_95``:
+    the 95 % interval's half-width in standard deviations (Student's t of the jackknife's blocks)."""
 
     time_offset_s: float
     std_s: float
@@ -51,11 +53,13 @@ class TimeOffsetResult:
     camera_speed_std: float
     samples: int
     extra: dict[str, Any] = field(default_factory=dict)
+    interval_95: float = NORMAL_95
 
     def to_json(self) -> dict[str, Any]:
         return {
             "time_offset_s": self.time_offset_s,
             "std_s": self.std_s,
+            "interval_95_s": self.interval_95 * self.std_s,
             "verdict": self.verdict,
             "reasons": self.reasons,
             "correlation": self.correlation,
@@ -213,4 +217,5 @@ def estimate_time_offset(
         speed_std,
         len(w_cam),
         extra={"R_cam_lidar_from_motion": R.tolist()},
+        interval_95=jackknife_interval_95(n),
     )

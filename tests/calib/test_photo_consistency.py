@@ -6,7 +6,6 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
-import pytest
 from scipy.spatial.transform import Rotation
 
 from calib import photo_consistency
@@ -23,7 +22,6 @@ from calib.photo_consistency import (
     _Parameters,
     _Problem,
     _straight_travel,
-    jackknife_interval_95,
 )
 from rig.camera import CameraModel
 from rig.trajectory import Trajectory
@@ -191,10 +189,3 @@ def test_the_last_descent_walks_a_flat_valley_and_keeps_the_better_end(monkeypat
     assert np.allclose(_descend_translations(problem, params, np.zeros(6)), lowest)
     start = lowest.copy()  # no step helps: the start comes back untouched
     assert _descend_translations(problem, params, start) is start
-
-
-def test_the_jackknife_interval_is_students_t_for_its_few_groups() -> None:
-    # 5 groups leave the variance 4 degrees of freedom: 2.78 standard deviations, not 1.96.
-    assert jackknife_interval_95(5) == pytest.approx(2.776, abs=1e-3)
-    assert jackknife_interval_95(20) == pytest.approx(2.093, abs=1e-3)
-    assert 1.96 < jackknife_interval_95(1000) < jackknife_interval_95(20) < jackknife_interval_95(5)

@@ -7,7 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from calib.boards import BoardView, ChessboardTarget, detect_chessboard
-from calib.target_based import BoardObservation, board_pose, calibrate_with_board
+from calib.intervals import NORMAL_95, jackknife_interval_95
+from calib.target_based import JACKKNIFE_GROUPS, BoardObservation, board_pose, calibrate_with_board
 from rig.errors import InputError
 from rig.pointcloud_io import PointCloud
 from rig.transforms import distance_and_angle, invert, make_transform
@@ -59,6 +60,10 @@ def test_virtual_rig_board_extrinsic_within_0p1_deg_and_1_cm() -> None:
     assert result.verdict == "ok", result.reasons
     assert result.extra["plane_rms_m"] < 0.015
     assert 0 < result.rotation_std_deg < 0.1 and 0 < result.translation_std_m < 0.01
+    # The jackknife over 8 groups of poses: Student's t with 7 degrees of freedom, not 1.96.
+    assert result.interval_95 == pytest.approx(jackknife_interval_95(JACKKNIFE_GROUPS))
+    interval = result.to_json()["rotation_interval_95_deg"]
+    assert interval == pytest.approx(2.365 * result.rotation_std_deg, rel=1e-3)
 
 
 def test_range_noise_along_the_rays_does_not_tilt_the_boards() -> None:
@@ -86,6 +91,7 @@ def test_single_board_pose_is_poorly_constrained() -> None:
     observations = _observations(1, seed=0)
     result = calibrate_with_board(observations, HALF, _guess())
     assert result.verdict == "poorly constrained"
+    assert result.interval_95 == NORMAL_95  # no jackknife ran: the Jacobian's spread alone
     assert "1 pose" in result.reasons[0]
     with pytest.raises(InputError, match="no initial guess"):
         calibrate_with_board(observations, HALF, None)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calib.time_offset import estimate_time_offset
+from calib.intervals import jackknife_interval_95
+from calib.time_offset import JACKKNIFE_BLOCKS, estimate_time_offset
 
 
 def _turning(t: np.ndarray, rng_seed: int = 0) -> np.ndarray:
@@ -38,6 +39,9 @@ def test_recovers_offset_within_2_ms(offset: float) -> None:
     assert result.verdict == "ok", result.reasons
     assert abs(result.time_offset_s - offset) < 0.002
     assert result.std_s < 0.005
+    # The spread of 20 blocks has 19 degrees of freedom: Student's t, 2.09 standard deviations.
+    assert result.interval_95 == pytest.approx(jackknife_interval_95(JACKKNIFE_BLOCKS))
+    assert result.to_json()["interval_95_s"] == pytest.approx(2.093 * result.std_s, rel=1e-3)
     assert result.correlation > 0.9
     R = np.array(result.extra["R_cam_lidar_from_motion"])
     assert Rotation.from_matrix(R @ R_CAM_LIDAR.T).magnitude() < np.radians(1.0)

@@ -24,6 +24,9 @@ def _straight(speed_m_s: float) -> Trajectory:
 
 def test_the_offset_may_be_off_by_its_distance_from_the_estimate_and_its_interval():
     assert offset_error(_estimate(0.015, 0.002), 0.015) == pytest.approx(1.96 * 0.002)
+    # An estimate from the jackknife's 20 blocks reaches Student's t: 2.09 standard deviations.
+    blocks = TimeOffsetResult(0.015, 0.002, "ok", [], 0.9, 0.3, 500, interval_95=2.093)
+    assert offset_error(blocks, 0.015) == pytest.approx(2.093 * 0.002)
     # Not applied (poorly constrained): the step used 0 s while the motion said 15 ± 8.7 ms.
     assert offset_error(_estimate(0.015, 0.0087, "poorly constrained"), 0.0) == pytest.approx(
         0.0320, abs=1e-4
