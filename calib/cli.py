@@ -6,6 +6,7 @@ contract's short form and the named subcommands live side by side.
 
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 from typing import Any
 
@@ -27,10 +28,16 @@ from rig.recording_options import (
 class _SessionDefaultGroup(TyperGroup):
     """Treat ``lts calibrate PATH ...`` as ``lts calibrate session PATH ...``, and options
     without a subcommand (``lts calibrate --out calib.yaml``: the recording forgotten) as the
-    session's, whose error names the missing recording."""
+    session's, whose error names the missing recording. A first word that names no file, has
+    no dot or slash and is close to a subcommand's name (``lts calibrate tme``) is taken for a
+    mistyped subcommand."""
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         if args and args[0] not in self.commands and args[0] not in ctx.help_option_names:
+            word = args[0]
+            typo = not Path(word).exists() and not any(c in word for c in "./\\")
+            if typo and (close := difflib.get_close_matches(word, self.commands, 1)):
+                raise click.UsageError(f"No such command {word!r}. Did you mean {close[0]!r}?", ctx)
             args = ["session", *args]
         return super().parse_args(ctx, args)
 

@@ -64,6 +64,20 @@ def test_a_forgotten_recording_is_named(tmp_path) -> None:
     assert "Commands" in _lts("calibrate", "--help").stdout
 
 
+def test_a_mistyped_subcommand_is_named(tmp_path) -> None:
+    """``lts calibrate tme REC``: a word close to a subcommand that names no file is a typo, not
+    a recording; a file of that name is still a recording."""
+    result = _lts("calibrate", "tme", tmp_path / "rec.mcap", "--out", tmp_path / "c.yaml")
+    assert result.returncode == 2 and "Did you mean 'time'?" in result.stderr
+    assert "Traceback" not in result.stderr
+    (tmp_path / "tme").write_bytes(b"not a recording")
+    command = [LTS, "calibrate", "tme", "--out", "c.yaml"]
+    result = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert result.returncode == 2 and "not a recording" in result.stderr
+    result = _lts("calibrate", tmp_path / "session.mcap", "--out", tmp_path / "c.yaml")  # a path: no typo
+    assert result.returncode == 2 and "no such session file" in result.stderr
+
+
 def _camera():
     from rig.camera import CameraModel
 
