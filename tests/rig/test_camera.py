@@ -50,6 +50,17 @@ def test_points_behind_camera_project_to_nan() -> None:
     np.testing.assert_allclose(pixels[2], K[:2, 2])
 
 
+@pytest.mark.parametrize("dist", [[], [0.0] * 5])
+def test_undistorted_pinhole_projects_as_opencv_to_the_bit(dist: list[float]) -> None:
+    camera = CameraModel("pinhole", 320, 240, K, dist)
+    points = np.random.default_rng(0).normal(size=(5000, 3)) * [2.0, 2.0, 5.0]
+    front = points[:, 2] > 0
+    expected, _ = cv2.projectPoints(points[front].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, camera.dist)
+    pixels = camera.project(points)
+    assert np.array_equal(pixels[front], expected.reshape(-1, 2))
+    assert np.isnan(pixels[~front]).all()
+
+
 def test_in_image_uses_pixel_centres() -> None:
     camera = CAMERAS["pinhole-none"]
     mask = camera.in_image(np.array([[-0.5, 0], [-0.51, 0], [319.49, 239.49], [319.5, 0], [np.nan, 1]]))
