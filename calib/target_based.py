@@ -201,6 +201,11 @@ def _fit(
     return least_squares(_residuals, x0, args=(T0, poses, half_size), loss="huber", f_scale=HUBER_SCALE_M)
 
 
+def _jackknife_groups(n_poses: int) -> int:
+    """How many groups the jackknife splits ``n_poses`` board poses into."""
+    return min(JACKKNIFE_GROUPS, n_poses)
+
+
 def _jackknife_std(
     x: np.ndarray, T0: np.ndarray, poses: Sequence[_FitPose], half_size: tuple[float, float]
 ) -> tuple[float, float]:
@@ -208,7 +213,7 @@ def _jackknife_std(
     jackknife over the poses. Unlike the Jacobian's, they include each pose's camera-side
     error (board pose from a few pixels of corners), which is shared by all of that pose's
     LiDAR points."""
-    groups = np.array_split(np.arange(len(poses)), min(JACKKNIFE_GROUPS, len(poses)))
+    groups = np.array_split(np.arange(len(poses)), _jackknife_groups(len(poses)))
     estimates = []
     for group in groups:
         keep = np.setdiff1d(np.arange(len(poses)), group)
@@ -283,7 +288,7 @@ def calibrate_with_board(
         rot_std, trans_std = max(rot_std, jack_rot), max(trans_std, jack_trans)
         # Student's t of the jackknife's few groups; where the Jacobian's spread is the larger
         # (thousands of points: the normal 1.96) the interval comes out a little wide.
-        interval_95 = jackknife_interval_95(min(JACKKNIFE_GROUPS, len(poses)))
+        interval_95 = jackknife_interval_95(_jackknife_groups(len(poses)))
     if not reasons and (rot_std > MAX_ROT_STD_DEG or trans_std > MAX_TRANS_STD_M):
         reasons.append(
             f"uncertainty ±{rot_std:.3f}° ±{trans_std * 100:.2f} cm above "
