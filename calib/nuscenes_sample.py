@@ -19,7 +19,7 @@ import numpy as np
 
 from calib.targetless import ExtrinsicPair, read_pair
 from rig.camera import CameraModel
-from rig.data_file import load_data_file
+from rig.data_file import load_data_file, matrix_field
 from rig.errors import InputError
 
 CALIB_FILE = "calib.json"
@@ -50,18 +50,6 @@ def nuscenes_camera_names(folder: Path) -> list[str]:
     return list(_calib(folder)["cameras"])
 
 
-def _matrix(entry: dict[str, Any], key: str, shape: tuple[int, int], path: Path, where: str) -> np.ndarray:
-    try:
-        matrix = np.asarray(entry[key], dtype=np.float64)
-    except (KeyError, TypeError, ValueError):
-        matrix = None
-    if matrix is None or matrix.shape != shape or not np.all(np.isfinite(matrix)):
-        raise InputError(
-            f"expected a {shape[0]}x{shape[1]} matrix of numbers", path=path, field=f"{where}.{key}"
-        )
-    return matrix
-
-
 def read_nuscenes_camera(folder: Path, name: str) -> tuple[ExtrinsicPair, CameraModel, np.ndarray]:
     """Camera ``name`` of the sample: its image with the sweep, its camera model and the reference
     ``T_cam_lidar`` ``(4, 4)`` with the car's motion between the two stamps."""
@@ -71,8 +59,8 @@ def read_nuscenes_camera(folder: Path, name: str) -> tuple[ExtrinsicPair, Camera
     entry = calib["cameras"].get(name)
     if not isinstance(entry, dict) or not isinstance(entry.get("file"), str):
         raise InputError("expected the camera's image file name", path=path, field=f"{where}.file")
-    K = _matrix(entry, "K", (3, 3), path, where)
-    T_ref = _matrix(entry, REFERENCE_FIELD, (4, 4), path, where)
+    K = matrix_field(calib, ("cameras", name, "K"), (3, 3), path)
+    T_ref = matrix_field(calib, ("cameras", name, REFERENCE_FIELD), (4, 4), path)
     pair = read_pair(folder / entry["file"], folder / calib["lidar"]["file"])
     height, width = pair.image.shape[:2]
     if (entry.get("width"), entry.get("height")) != (width, height):

@@ -1,6 +1,7 @@
 """Benchmark of the calibration from a recording: the targetless extrinsic and the time offset on
-virtual-rig sessions over seeds × initial guesses, and the extrinsic on single frames in KITTI's
-object layout against the dataset's reference.
+virtual-rig sessions over seeds × initial guesses, and the extrinsic on single real frames (KITTI's
+object layout, a nuScenes sample's cameras, PJLab's OpenCalib pairs) against each dataset's
+reference.
 
 Each session is simulated once (reused while up to date), its time offset estimated once, then the
 extrinsic refined from every guess: the truth turned by a given angle about a random axis and moved
@@ -36,9 +37,11 @@ SUCCESS_DEG = 0.5
 SUCCESS_M = 0.05
 NO_GUESS = "none"
 DEFAULT_GUESSES = ("0/0", "2/10", "10/30", NO_GUESS)
-#: The source names of the KITTI object-layout frames and the nuScenes sample's cameras in the table.
+#: The source names of the KITTI object-layout frames, the nuScenes sample's cameras and the
+#: OpenCalib pairs in the table.
 KITTI_SOURCE = "kitti"
 NUSCENES_SOURCE = "nuscenes"
+PJLAB_SOURCE = "pjlab"
 
 
 @dataclass(frozen=True)
@@ -261,11 +264,14 @@ def bench_calib(
     log: Callable[[str], None],
     kitti_frames: Path | None = None,
     nuscenes_sample: Path | None = None,
+    pjlab_pairs: Path | None = None,
 ) -> dict[str, Any]:
-    """Run every preset × seed × guess, every frame of ``kitti_frames`` and every camera of
-    ``nuscenes_sample`` × guess (see the module docstring); returns the JSON table."""
+    """Run every preset × seed × guess, and every frame of ``kitti_frames``, camera of
+    ``nuscenes_sample`` and pair of ``pjlab_pairs`` × guess (see the module docstring); returns the
+    JSON table."""
     from calib.kitti_frames import kitti_frame_names, read_kitti_frame
     from calib.nuscenes_sample import nuscenes_camera_names, read_nuscenes_camera
+    from calib.pjlab_pairs import pjlab_pair_names, read_pjlab_pair
 
     rows: list[dict[str, Any]] = []
     for preset in presets:
@@ -282,6 +288,10 @@ def bench_calib(
             NUSCENES_SOURCE, names, lambda n: read_nuscenes_camera(nuscenes_sample, n), guesses, log
         )
         sources.append(NUSCENES_SOURCE)
+    if pjlab_pairs is not None:
+        names = pjlab_pair_names(pjlab_pairs)
+        rows += _frame_rows(PJLAB_SOURCE, names, lambda n: read_pjlab_pair(pjlab_pairs, n), guesses, log)
+        sources.append(PJLAB_SOURCE)
     summary = {
         source: {
             g.label: _summary([r for r in rows if r["source"] == source and r["guess"] == g.label])

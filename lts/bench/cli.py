@@ -160,7 +160,7 @@ def bench_calib_command(
         None,
         "--sim",
         help="Virtual-rig presets to simulate (repeat: --sim room --sim street); default room, none "
-        "when --kitti-frames or --nuscenes-sample is given.",
+        "when --kitti-frames, --nuscenes-sample or --pjlab-pairs is given.",
     ),
     seeds: int = typer.Option(3, "--seeds", min=1, help="Sessions per preset: seeds 0 to N-1."),
     guess: list[str] = typer.Option(
@@ -184,6 +184,13 @@ def bench_calib_command(
         "the cameras' images, intrinsics and reference with the car's motion between the stamps), one "
         "camera at a time.",
     ),
+    pjlab_pairs: Path | None = typer.Option(
+        None,
+        "--pjlab-pairs",
+        help="Also each image + cloud pair in PJLab's OpenCalib layout (a folder with an image, a .pcd, "
+        "CAMERA-intrinsic.json and LIDAR-to-CAMERA-extrinsic.json, the reference; or a folder of such "
+        "folders), one pair at a time.",
+    ),
     out: Path = OUT_OPTION,
     json_out: bool = JSON_OPTION,
 ) -> None:
@@ -191,11 +198,12 @@ def bench_calib_command(
     the reported spread of the targetless extrinsic (and the time offset), over seeds × guesses."""
     from calib.kitti_frames import kitti_frame_names
     from calib.nuscenes_sample import nuscenes_camera_names
+    from calib.pjlab_pairs import pjlab_pair_names
     from lts.bench.calibration import DEFAULT_GUESSES, bench_calib, parse_guess
     from rig.sim.scenes import get_preset
 
     guesses = [parse_guess(g) for g in guess or DEFAULT_GUESSES]
-    real = kitti_frames is not None or nuscenes_sample is not None
+    real = any(folder is not None for folder in (kitti_frames, nuscenes_sample, pjlab_pairs))
     sim = sim or ([] if real else ["room"])
     for preset in sim:
         get_preset(preset)  # an unknown preset stops here, before any session is simulated
@@ -203,8 +211,10 @@ def bench_calib_command(
         kitti_frame_names(kitti_frames)  # a folder without frames stops here, before any simulation
     if nuscenes_sample is not None:
         nuscenes_camera_names(nuscenes_sample)
+    if pjlab_pairs is not None:
+        pjlab_pair_names(pjlab_pairs)
     result = bench_calib(
-        sim, range(seeds), guesses, duration, out / "calib", _log, kitti_frames, nuscenes_sample
+        sim, range(seeds), guesses, duration, out / "calib", _log, kitti_frames, nuscenes_sample, pjlab_pairs
     )
     _print_calib(result)
     _finish(result, json_out)

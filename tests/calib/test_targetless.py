@@ -2,44 +2,23 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from calib.kitti_frames import read_kitti_frame
+from calib.pjlab_pairs import read_pjlab_pair
 from calib.targetless import ExtrinsicPair, refine_extrinsic
 from rig.camera import CameraModel
-from rig.pointcloud_io import PointCloud, read_point_cloud
+from rig.pointcloud_io import PointCloud
 from rig.transforms import distance_and_angle
-
-PAIRS = {"manual": ("0.png", "0.pcd"), "auto": ("calib.png", "calib.pcd")}
 
 
 def load_pjlab(root: Path, name: str) -> tuple[ExtrinsicPair, CameraModel, np.ndarray]:
-    """Image + cloud, camera model and reference ``T_cam_lidar`` of one PJLab pair."""
-    folder = root / "lidar_camera_pjlab" / name
-    intrinsic = json.loads((folder / "center_camera-intrinsic.json").read_text())["center_camera-intrinsic"][
-        "param"
-    ]
-    extrinsic = json.loads((folder / "top_center_lidar-to-center_camera-extrinsic.json").read_text())
-    T_ref = np.array(
-        extrinsic["top_center_lidar-to-center_camera-extrinsic"]["param"]["sensor_calib"]["data"]
-    )
-    image_name, cloud_name = PAIRS[name]
-    image = cv2.imread(str(folder / image_name))
-    # The JSON's img_dist_h says 1080 for "manual", but the image is 1200 tall: use the image.
-    camera = CameraModel(
-        "pinhole",
-        image.shape[1],
-        image.shape[0],
-        np.array(intrinsic["cam_K"]["data"]),
-        np.array(intrinsic["cam_dist"]["data"]).ravel(),
-    )
-    return ExtrinsicPair(image, read_point_cloud(folder / cloud_name)), camera, T_ref
+    """Image + cloud, camera model and reference ``T_cam_lidar`` of one shared PJLab pair."""
+    return read_pjlab_pair(root / "lidar_camera_pjlab", name)
 
 
 def perturb(T: np.ndarray, rng: np.random.Generator, deg: float = 2.0, metres: float = 0.10) -> np.ndarray:
