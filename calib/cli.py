@@ -14,7 +14,7 @@ import click
 import typer
 from typer.core import TyperGroup
 
-from rig.cli_support import console, emit_json
+from rig.cli_support import console, emit_json, output_file_option
 from rig.recording_options import (
     CAMERA_OPTION,
     DURATION_OPTION,
@@ -68,7 +68,7 @@ def _merge_into(base_path: Path | None, camera: Any = None, **updates: Any) -> A
 @app.command("intrinsics")
 def intrinsics(
     images: list[Path] = typer.Argument(..., help="Board photographs (PNG/JPEG)."),
-    out: Path = typer.Option(..., "--out", help="calib.yaml to write (its other blocks are kept)."),
+    out: Path = output_file_option(..., "--out", help="calib.yaml to write (its other blocks are kept)."),
     board: str | None = typer.Option(
         None, "--board", help="Chessboard inner corners COLSxROWS (searched when omitted)."
     ),
@@ -123,7 +123,7 @@ def extrinsic(
         ..., "--points", help="LiDAR cloud .pcd or KITTI .bin, one per --image."
     ),
     init: Path = typer.Option(..., "--init", help="calib.yaml with the camera and an initial T_cam_lidar."),
-    out: Path = typer.Option(..., "--out", help="calib.yaml to write."),
+    out: Path = output_file_option(..., "--out", help="calib.yaml to write."),
     overlay: Path | None = typer.Option(
         None, "--overlay", help="PNG: LiDAR points on the first image, initial guess beside the result."
     ),
@@ -207,7 +207,9 @@ def time_offset(
     init: Path | None = typer.Option(
         None, "--init", help="calib.yaml for the camera model if the session has none."
     ),
-    out: Path | None = typer.Option(None, "--out", help="calib.yaml to update with the offset (when ok)."),
+    out: Path | None = output_file_option(
+        None, "--out", help="calib.yaml to update with the offset (when ok)."
+    ),
     topics: str = TOPICS_OPTION,
     camera: int | None = CAMERA_OPTION,
     start: float = START_OPTION,
@@ -245,7 +247,7 @@ def time_offset(
 @app.command("session")
 def session_command(
     session: list[Path] = RECORDING_ARGUMENT,
-    out: Path = typer.Option(..., "--out", help="calib.yaml to write."),
+    out: Path = output_file_option(..., "--out", help="calib.yaml to write."),
     init: Path | None = typer.Option(
         None,
         "--init",

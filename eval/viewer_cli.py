@@ -27,7 +27,9 @@ def view_command(
     host: str = typer.Option(
         "127.0.0.1", "--host", help="Address to listen on; 0.0.0.0 opens the viewer to the network."
     ),
-    port: int = typer.Option(8080, "--port", help="Port to listen on (the next free one if taken)."),
+    port: int = typer.Option(
+        8080, "--port", min=1, max=65535, help="Port to listen on (the next free one if taken)."
+    ),
     device: str = typer.Option("cpu", "--device", help="cpu or cuda, where the model renders."),
     render_width: int = typer.Option(
         320,

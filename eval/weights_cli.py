@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from rig.cli_support import console
+from rig.cli_support import console, output_file_option
 
 app = typer.Typer(
     help="Weights the evaluation uses: LPIPS (AlexNet trunk + v0.1 heads). Needs internet once.",
@@ -17,7 +17,7 @@ app = typer.Typer(
 
 @app.command("download")
 def download_command(
-    out: Path | None = typer.Option(
+    out: Path | None = output_file_option(
         None,
         "--out",
         help="File to write (default: the cache lts eval reads, ~/.cache/lidar-ts/lpips_alex.pt).",

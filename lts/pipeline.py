@@ -183,10 +183,11 @@ def check_options(o: ReconstructOptions) -> Recording:
                 "/tf_static transform between its image and point cloud frames to start from",
                 field="calib",
             )
-    if o.calib is not None and str(o.calib) != CALIB_FROM_RECORDING:
-        from rig.calibration import load_calibration
+    from rig.calibration import load_calibration
 
-        load_calibration(o.calib)  # a bad file stops here, with its own error
+    for given in (o.calib, o.init):
+        if given is not None and str(given) != CALIB_FROM_RECORDING:
+            load_calibration(given)  # a bad file stops here, with its own error, before any stage
     return recording
 
 

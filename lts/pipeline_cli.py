@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from rig.cli_support import console, emit_json
+from rig.cli_support import console, emit_json, output_folder_option
 from rig.recording_options import (
     CALIB_TF_HELP,
     CAMERA_OPTION,
@@ -77,7 +77,7 @@ def _print_table(summary: dict) -> None:
 
 def reconstruct_command(
     session: list[Path] = RECORDING_ARGUMENT,
-    out: Path = typer.Option(
+    out: Path = output_folder_option(
         ..., "--out", "-o", help="Run folder: calib.yaml, slam/, scene/, train/, report."
     ),
     calib: Path | None = typer.Option(
@@ -161,7 +161,9 @@ def reconstruct_command(
 
 
 def demo_command(
-    out: Path = typer.Option(Path("demo_out"), "--out", "-o", help="Where the scene, session and run go."),
+    out: Path = output_folder_option(
+        Path("demo_out"), "--out", "-o", help="Where the scene, session and run go."
+    ),
     quick: bool = typer.Option(
         False, "--quick", help="The simulator's 3 s, 160x120 room and the fast preset."
     ),

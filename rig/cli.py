@@ -10,7 +10,7 @@ from typing import Any
 
 import typer
 
-from rig.cli_support import VERSION_OPTION, console, emit_json, run_app
+from rig.cli_support import VERSION_OPTION, console, emit_json, output_file_option, run_app
 from rig.errors import InputError
 from rig.recording_options import (
     CAMERA_OPTION,
@@ -130,7 +130,7 @@ def _record(recording: Any, duration: float | None, after_open: Any = None) -> d
 
 @app.command()
 def record(
-    out: Path = typer.Option(..., "--out", help="Session file to write (.mcap)."),
+    out: Path = output_file_option(..., "--out", help="Session file to write (.mcap)."),
     config: Path | None = typer.Option(None, "--config", help="rig.yaml describing the devices."),
     sim: Path | None = typer.Option(
         None, "--sim", help="Virtual-rig scene folder: record it through mock devices."
@@ -159,8 +159,6 @@ def record(
 
     if (config is None) == (sim is None):
         raise InputError("give exactly one of --config RIG.yaml or --sim SCENE_DIR", field="--config/--sim")
-    if not out.parent.is_dir():
-        raise InputError("the output folder does not exist", path=out.parent, field="--out")
     try:
         if sim is not None:
             from rig.mock.sim_rig import build_sim_rig
@@ -319,14 +317,12 @@ def replay(
 @app.command()
 def recover(
     session: Path = typer.Argument(..., help="A (truncated) session file."),
-    out: Path = typer.Option(..., "--out", help="The valid file to write."),
+    out: Path = output_file_option(..., "--out", help="The valid file to write."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """Salvage every complete record of a truncated recording into a valid MCAP file."""
     from rig.session.recover import recover as run_recover
 
-    if not out.parent.is_dir():
-        raise InputError("the output folder does not exist", path=out.parent, field="--out")
     result = run_recover(session, out)
     if json_out:
         emit_json(result)

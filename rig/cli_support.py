@@ -10,6 +10,7 @@ import json
 import logging
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TextIO
 
 import click
@@ -126,3 +127,25 @@ def version_callback(value: bool) -> None:
 VERSION_OPTION = typer.Option(
     False, "--version", callback=version_callback, is_eager=True, help="Print the version and exit."
 )
+
+
+def _in_existing_folder(path: Path | None) -> Path | None:
+    if path is not None and not path.parent.is_dir():
+        raise typer.BadParameter(f"the folder {path.parent} does not exist")
+    return path
+
+
+def output_file_option(default: Any, *flags: str, help: str) -> Any:
+    """A Typer option (or, with no ``flags``, argument) naming a file to write: refused on the
+    command line (exit 2) when it is a folder or its folder does not exist, before any work."""
+    if not flags:
+        return typer.Argument(default, dir_okay=False, callback=_in_existing_folder, help=help)
+    return typer.Option(default, *flags, dir_okay=False, callback=_in_existing_folder, help=help)
+
+
+def output_folder_option(default: Any, *flags: str, help: str) -> Any:
+    """A Typer option (or, with no ``flags``, argument) naming a folder to write into (made when
+    missing): refused on the command line (exit 2) when it is a file, before any work."""
+    if not flags:
+        return typer.Argument(default, file_okay=False, help=help)
+    return typer.Option(default, *flags, file_okay=False, help=help)

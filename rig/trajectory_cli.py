@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from rig.cli_support import console, emit_json
+from rig.cli_support import console, emit_json, output_file_option
 from rig.trajectory import Trajectory
 from rig.trajectory_io import FORMATS, read_trajectory, write_trajectory
 
@@ -54,7 +54,7 @@ def info(
 @app.command("convert")
 def convert(
     src: Path = typer.Argument(..., help="Input trajectory file."),
-    dst: Path = typer.Argument(..., help="Output file (KITTI also writes <stem>_times.txt)."),
+    dst: Path = output_file_option(..., help="Output file (KITTI also writes <stem>_times.txt)."),
     to: str = typer.Option("tum", "--to", help=f"Output format: {', '.join(FORMATS)}."),
     fmt: str | None = typer.Option(None, "--format", help=_FORMAT_HELP),
     times: Path | None = typer.Option(

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from rig.cli_support import console, emit_json
+from rig.cli_support import console, emit_json, output_folder_option
 from rig.recording_options import (
     DURATION_OPTION,
     POINTS_TOPIC_OPTION,
@@ -27,7 +27,7 @@ def import_command(
     source: Path = typer.Argument(
         ..., help="The mapper's output folder (or, for generic, a folder or mesh file)."
     ),
-    out: Path = typer.Option(..., "--out", help="SLAM folder to write: mesh.ply + trajectory.tum."),
+    out: Path = output_folder_option(..., "--out", help="SLAM folder to write: mesh.ply + trajectory.tum."),
     fmt: str | None = typer.Option(
         None,
         "--format",
@@ -83,7 +83,7 @@ def import_command(
 @app.command("run")
 def run_command(
     session: list[Path] = RECORDING_ARGUMENT,
-    out: Path = typer.Option(..., "--out", help="SLAM folder to write: mesh.ply + trajectory.tum."),
+    out: Path = output_folder_option(..., "--out", help="SLAM folder to write: mesh.ply + trajectory.tum."),
     calib: Path | None = typer.Option(
         None, "--calib", help="calib.yaml; only checked here (the mapper uses the LiDAR alone)."
     ),

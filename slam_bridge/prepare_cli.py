@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from rig.cli_support import console, emit_json
+from rig.cli_support import console, emit_json, output_folder_option
 from rig.recording_options import (
     CALIB_TF_HELP,
     CAMERA_OPTION,
@@ -58,7 +58,7 @@ def prepare_command(
         ..., "--calib", help=f"calib.yaml: camera, T_cam_lidar, time_offset_s; {CALIB_TF_HELP}."
     ),
     slam: Path = typer.Option(..., "--slam", help="SLAM folder (mesh.ply + trajectory.tum), from lts slam."),
-    out: Path = typer.Option(..., "--out", help="Scene folder to write."),
+    out: Path = output_folder_option(..., "--out", help="Scene folder to write."),
     interval: float | None = typer.Option(
         None,
         "--keyframe-interval",

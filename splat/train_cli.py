@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from rig.cli_support import console, emit_json
+from rig.cli_support import console, emit_json, output_folder_option
 from rig.errors import InputError
 from splat.blocks.options import BlockOptions, parse_block_count, refuse_learnt_poses
 from splat.config import METHODS, PRESETS, TrainConfig
@@ -20,7 +20,7 @@ def _block_option(flag: str, minimum: float, what: str, default: float):
 
 def train_command(
     scene: Path = typer.Argument(..., help="Scene folder written by lts prepare."),
-    out: Path = typer.Option(
+    out: Path = output_folder_option(
         ..., "--out", "-o", help="Run folder (config, metrics, checkpoints, model, mesh)."
     ),
     method: str = typer.Option(

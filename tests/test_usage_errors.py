@@ -19,21 +19,32 @@ from rig.cli import app as rig_app
 BIN = Path(sys.executable).parent
 
 
-def _commands() -> list[tuple[list[str], bool, bool]]:
-    """``(command words, takes --json, has a required parameter)`` of every leaf command."""
+def _leaves() -> list[tuple[list[str], typer.main.click.Command]]:
+    """``(command words, command)`` of every leaf command of both apps."""
 
     def walk(command, path):
         if getattr(command, "commands", None):
             for name, sub in command.commands.items():
                 yield from walk(sub, [*path, name])
         else:
-            json_option = any("--json" in getattr(p, "opts", []) for p in command.params)
-            yield path, json_option, any(p.required for p in command.params)
+            yield path, command
 
     return [
         c
         for name, app in (("lts", lts_app), ("rig", rig_app))
         for c in walk(typer.main.get_command(app), [name])
+    ]
+
+
+def _commands() -> list[tuple[list[str], bool, bool]]:
+    """``(command words, takes --json, has a required parameter)`` of every leaf command."""
+    return [
+        (
+            words,
+            any("--json" in getattr(p, "opts", []) for p in command.params),
+            any(p.required for p in command.params),
+        )
+        for words, command in _leaves()
     ]
 
 
@@ -83,3 +94,52 @@ def test_an_unknown_command_is_a_usage_error(args: list[str]) -> None:
     result = _run(args)
     assert result.returncode == 2 and "No such command 'no-such-command'" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+#: The parameters that name what a command writes.
+OUTPUT_PARAMETERS = ("out", "out_dir", "dst")
+
+
+def test_every_output_path_is_checked_on_the_command_line() -> None:
+    """A folder to write into refuses a file; a file to write refuses a folder and a folder that
+    does not exist (rig.cli_support.output_folder_option / output_file_option)."""
+    outputs = [
+        (words, p) for words, command in _leaves() for p in command.params if p.name in OUTPUT_PARAMETERS
+    ]
+    assert len(outputs) > 15
+    # Typer keeps the declared Path checks on the parameter's info.
+    infos = [(words, p.type_descriptor.parameter_info) for words, p in outputs]
+    unchecked = [
+        " ".join(words)
+        for words, info in infos
+        if info.file_okay and (info.dir_okay or info.callback is None)
+    ]
+    assert not unchecked
+
+
+def test_an_output_path_of_the_wrong_kind_stops_before_any_work(tmp_path: Path) -> None:
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("not a folder")
+    missing = tmp_path / "missing" / "calib.yaml"
+    cases = [
+        (["lts", "sim", str(a_file), "--quick"], f"dir '{a_file}' is a file"),
+        (["lts", "reconstruct", str(a_file), "--out", str(a_file)], f"dir '{a_file}' is a file"),
+        (
+            ["lts", "calibrate", "time", str(a_file), "--out", str(missing)],
+            f"the folder {missing.parent} does not",
+        ),
+        (
+            ["lts", "calibrate", "time", str(a_file), "--out", str(tmp_path)],
+            f"file '{tmp_path}' is a directory",
+        ),
+        (
+            ["rig", "record", "--sim", str(tmp_path), "--out", str(missing)],
+            f"the folder {missing.parent} does not",
+        ),
+    ]
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(_run, [args for args, _ in cases]))
+    for (args, says), result in zip(cases, results, strict=True):
+        last = result.stderr.strip().splitlines()[-1]
+        assert result.returncode == 2 and "Traceback" not in result.stderr, (args, result.stderr)
+        assert last.startswith("error: Invalid value for ") and says in last, (args, last)

@@ -8,13 +8,13 @@ from pathlib import Path
 import typer
 
 from lts.stress.cli import bench_stability_command
-from rig.cli_support import console, emit_json
+from rig.cli_support import console, emit_json, output_folder_option
 
 bench_app = typer.Typer(name="bench", help="Benchmarks (timings and memory).", no_args_is_help=True)
 
 SCENE_OPTION = typer.Option(None, "--scene", help="Prepared scene folder (default: a new virtual-rig scene).")
 GT_OPTION = typer.Option(None, "--gt", help="Virtual-rig ground-truth folder of --scene's session.")
-OUT_OPTION = typer.Option(
+OUT_OPTION = output_folder_option(
     Path("bench_out"), "--out", "-o", help="Where runs, the JSON table and the plot go."
 )
 FULL_OPTION = typer.Option(

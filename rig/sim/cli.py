@@ -6,11 +6,11 @@ from pathlib import Path
 
 import typer
 
-from rig.cli_support import console, emit_json
+from rig.cli_support import console, emit_json, output_folder_option
 
 
 def sim(
-    out_dir: Path = typer.Argument(..., help="Output folder: session.mcap and ground_truth/."),
+    out_dir: Path = output_folder_option(..., help="Output folder: session.mcap and ground_truth/."),
     preset: str = typer.Option(
         "room",
         "--preset",

@@ -167,3 +167,11 @@ def test_unreadable_messages_are_one_line_errors(tmp_path: Path) -> None:
     one_line_error(
         run("lts", "slam", "run", bag, "--out", tmp_path / "s"), str(bag), "/livox/lidar", "point_num=2"
     )
+
+
+def test_a_bad_init_stops_reconstruct_before_any_stage(layout_bags: dict, tmp_path: Path) -> None:
+    rough = tmp_path / "rough.yaml"
+    rough.write_text("T_cam_lidar: [1, 2]\n")
+    result = run("lts", "reconstruct", layout_bags["utmm"], "--init", rough, "--out", tmp_path / "run")
+    one_line_error(result, str(rough), "camera: missing")
+    assert "[calibrate]" not in result.stderr and not (tmp_path / "run").exists()
