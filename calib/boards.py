@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from rig.errors import InputError
+from rig.image_io import read_image
 
 #: Longest image side the chessboard detector works on before refining at full resolution.
 DETECT_MAX_SIDE = 960
@@ -155,10 +156,7 @@ def parse_grid(text: str, field: str) -> tuple[int, int]:
 
 def read_gray(path: str | Path) -> np.ndarray:
     """Read an image file as ``(H, W)`` uint8 grey; raises :class:`InputError` naming the file."""
-    gray = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if gray is None:
-        raise InputError("cannot read the image (missing or not an image file)", path=path)
-    return gray
+    return read_image(path, cv2.IMREAD_GRAYSCALE)
 
 
 def detect_views(

@@ -16,13 +16,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from calib.targetless import ExtrinsicPair
 from rig.camera import CameraModel
 from rig.data_file import load_data_file, matrix_field
 from rig.errors import InputError
+from rig.image_io import read_image
 from rig.pointcloud_io import read_point_cloud
 
 INTRINSIC_SUFFIX = "-intrinsic.json"
@@ -72,10 +72,7 @@ def read_pjlab_pair(root: Path, name: str) -> tuple[ExtrinsicPair, CameraModel, 
     K = _param(intrinsic, ("param", "cam_K", "data"), (3, 3))
     dist = _param(intrinsic, ("param", "cam_dist", "data"), (None, None)).ravel()
     T_ref = _param(extrinsic, ("param", "sensor_calib", "data"), (4, 4))
-    image_path = _one_file(folder, IMAGE_SUFFIXES, "image")
-    image = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
-    if image is None:
-        raise InputError("cannot read the image", path=image_path)
+    image = read_image(_one_file(folder, IMAGE_SUFFIXES, "image"))
     cloud = read_point_cloud(_one_file(folder, (".pcd",), "point cloud"))
     # The image's own size: one shared pair's JSON says 1080 rows for a 1200-row image.
     camera = CameraModel("pinhole", image.shape[1], image.shape[0], K, dist)

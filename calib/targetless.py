@@ -36,6 +36,7 @@ from calib.features import edge_field, lidar_edges
 from calib.intervals import NORMAL_95
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.image_io import read_image
 from rig.pointcloud_io import PointCloud, read_point_cloud
 from rig.transforms import distance_and_angle, make_transform, transform_points
 
@@ -119,10 +120,7 @@ class ExtrinsicResult:
 def read_pair(image_path: Path, cloud_path: Path) -> ExtrinsicPair:
     """An image file (colour, any format OpenCV reads) and a point-cloud file
     (:func:`rig.pointcloud_io.read_point_cloud`) as one pair."""
-    picture = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
-    if picture is None:
-        raise InputError("cannot read the image", path=image_path)
-    return ExtrinsicPair(picture, read_point_cloud(cloud_path))
+    return ExtrinsicPair(read_image(image_path), read_point_cloud(cloud_path))
 
 
 def apply_increment(x: np.ndarray, T_init: np.ndarray) -> np.ndarray:

@@ -8,6 +8,7 @@ from rig.calibration import Calibration, load_calibration, save_calibration
 from rig.camera import CameraModel
 from rig.deskew import deskewed_points
 from rig.errors import InputError, OutOfRangeError
+from rig.image_io import read_image
 from rig.messages import Frame, ImuSample, Scan
 from rig.pointcloud_io import PointCloud, read_point_cloud
 from rig.trajectory import Trajectory
@@ -57,6 +58,7 @@ __all__ = [
     "load_calibration",
     "make_transform",
     "read_euroc",
+    "read_image",
     "read_kitti",
     "read_matrix_lines",
     "read_point_cloud",

@@ -11,6 +11,7 @@ import numpy as np
 
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.image_io import read_image
 from rig.mesh_rays import cast_camera_rays, pixel_rays
 from slam_bridge.scene import Keyframe
 
@@ -43,9 +44,7 @@ def read_normal_map(folder: Path, frame_index: int, t_ns: int, camera: CameraMod
             if suffix == ".npy":
                 normals = np.load(path).astype(np.float32)
             else:
-                encoded = cv2.imread(str(path), cv2.IMREAD_COLOR)
-                if encoded is None:
-                    raise InputError("cannot read normal map", path=path)
+                encoded = read_image(path, what="the normal map")
                 normals = cv2.cvtColor(encoded, cv2.COLOR_BGR2RGB).astype(np.float32) / 127.5 - 1.0
             if normals.shape != (camera.height, camera.width, 3):
                 raise InputError(

@@ -32,6 +32,7 @@ from rig.atomic_file import write_atomic
 from rig.camera import CameraModel
 from rig.data_file import load_data_file
 from rig.errors import InputError
+from rig.image_io import read_image
 from rig.transforms import check_rigid
 from slam_bridge.depth_image import moving_pixel_mask, visible_returns
 from slam_bridge.prepare_config import PrepareConfig
@@ -97,9 +98,7 @@ class Scene:
     def image(self, keyframe: Keyframe) -> np.ndarray:
         """``(H, W, 3)`` uint8 RGB image."""
         path = self.root / "images" / f"{keyframe.name}.png"
-        image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if image is None:
-            raise InputError("cannot read keyframe image", path=path)
+        image = read_image(path, what="the keyframe image")
         want = (self.camera.height, self.camera.width)
         if image.shape[:2] != want:  # it would be trained against the wrong pixels
             raise InputError(

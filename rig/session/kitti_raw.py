@@ -27,6 +27,7 @@ import numpy as np
 
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.image_io import read_image
 from rig.messages import Frame, ImuSample, Scan
 from rig.session import ros_messages as rm
 from rig.session.source import Recording, SessionMessage, TimeSpan, TopicSummary
@@ -428,8 +429,8 @@ class KittiRecording(Recording):
         files = self._images[number][0]
         for position, entry in enumerate(self._entries([topic], whole=False)):
             if wanted is None or position in wanted:
-                image = cv2.imread(str(files[entry.index]), cv2.IMREAD_UNCHANGED)
-                if image is None or image.dtype != np.uint8:
+                image = read_image(files[entry.index], cv2.IMREAD_UNCHANGED, "this PNG")
+                if image.dtype != np.uint8:
                     raise InputError("cannot read this PNG as an 8-bit image", path=files[entry.index])
                 yield Frame(image, entry.t, None, topic, "mono8" if image.ndim == 2 else "bgr8")
 
