@@ -165,6 +165,12 @@ class TrainConfig(BaseModel):
         description="prune triangles no training view sees: yes for Delaunay starts (arbitrary tetrahedron "
         "faces), no for the mesh warm start (what no camera sees is still the LiDAR's geometry)",
     )
+    keep_far_floor: bool = Field(
+        True,
+        description="never prune the triangles on the floor plane farther than 8 m from every camera for "
+        "their transparency: a street's road there, a few pixels high between a spinning LiDAR's rings, "
+        "turns transparent where the background explains those pixels, and the mesh loses it",
+    )
 
     # Skipping work and bookkeeping.
     coarse_until: float = Field(

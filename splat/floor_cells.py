@@ -31,6 +31,10 @@ FLOOR_CLEARANCE_M = 0.1
 STANDING_SPAN_M = 0.4
 #: Returns within this of the floor plane are ground the LiDAR saw: the floor, a kerb, a pavement.
 GROUND_BAND_M = 0.3
+#: Within this distance of a camera along the floor the ground fill lays fine cells and the floor is
+#: near enough for many pixels and the LiDAR's returns to train it; beyond it a street's road lies
+#: between a spinning LiDAR's far rings, a few pixels high (a room's floor ends within it).
+NEAR_FLOOR_M = 8.0
 
 
 @dataclass(frozen=True)
@@ -237,3 +241,22 @@ def enclosed_hidden_cells(
         seen_share = ndimage.mean(ground, parts, np.arange(1, count + 1))
         hidden &= np.concatenate([[False], seen_share < 0.5])[parts]
     return np.argwhere(hidden) + low
+
+
+def on_floor(floor: PlaneGrid | None, triangles: np.ndarray) -> np.ndarray:
+    """``(F,)`` bool: which ``triangles`` ``(F, 3, 3)`` lie on the ``floor`` plane (all three corners
+    within :data:`FLOOR_CLEARANCE_M`); all False without a floor."""
+    if floor is None:
+        return np.zeros(len(triangles), dtype=bool)
+    return floor.lying_on(triangles, FLOOR_CLEARANCE_M)
+
+
+def on_far_floor(floor: PlaneGrid | None, triangles: np.ndarray, cameras: np.ndarray) -> np.ndarray:
+    """``(F,)`` bool: which ``triangles`` ``(F, 3, 3)`` lie on the ``floor`` plane (:func:`on_floor`)
+    farther than :data:`NEAR_FLOOR_M` along it from every camera centre ``(K, 3)``."""
+    far = on_floor(floor, triangles)
+    if floor is None or not far.any() or not len(cameras):
+        return far
+    distance, _ = cKDTree(floor.along(cameras)).query(floor.along(triangles[far].mean(axis=1)))
+    far[np.flatnonzero(far)[distance <= NEAR_FLOOR_M]] = False
+    return far

@@ -21,6 +21,7 @@ from rig.mesh_rays import cast_camera_rays, mesh_raycaster
 from rig.plane_fit import ransac_plane
 from splat.floor_cells import (
     GROUND_BAND_M,
+    NEAR_FLOOR_M,
     PlaneGrid,
     ReturnColumns,
     enclosed_hidden_cells,
@@ -171,7 +172,7 @@ def ground_fill(
     poses_world_cam: np.ndarray,
     lidar: np.ndarray | None = None,
     cell_m: float = 0.15,
-    max_range_m: float = 8.0,
+    max_range_m: float = NEAR_FLOOR_M,
     pixel_stride: int = 4,
     complete_hidden: bool = True,
     closing_m: float = 0.6,

@@ -36,8 +36,10 @@ from splat.exposure import (
     neighbour_gains,
 )
 from splat.finite import all_finite
+from splat.floor_cells import PlaneGrid, on_floor
 from splat.held_out_views import evaluate_views, load_held_out_views, mark_background, write_renders
 from splat.initialise import build_model, initial_triangles
+from splat.lidar_points import lidar_points
 from splat.losses import image_moments, training_loss
 from splat.model import TriangleModel, save_model
 from splat.param_rows import make_optimizer
@@ -266,6 +268,12 @@ class Trainer:
                              path=self.run_dir)  # fmt: skip
         self._select_keyframes()
         self._load_views()
+        self.floor = scene_floor(
+            self.scene, self.train_keyframes, lidar_points(self.scene, self.train_keyframes)
+        )
+        self.strategy.keep_far_floor(
+            self.floor, np.stack([k.T_world_cam[:3, 3] for k in self.train_keyframes])
+        )
         if resume:
             self._restore(checkpoint)
         else:
@@ -541,7 +549,7 @@ class Trainer:
             keyframes = self.poses.corrected_keyframes(keyframes)
             write_keyframe_poses(keyframes, layout.keyframe_poses_path(self.run_dir))
             poses = self.poses.summary()
-        export = export_run(self.model, self.scene, keyframes, self.run_dir)
+        export = export_run(self.model, self.scene, keyframes, self.run_dir, self.floor)
         c, s = self.config, self.state
         result = TrainResult(
             str(self.run_dir), c.method, c.preset, c.device, s.iteration, round(s.elapsed_s, 3),
@@ -622,38 +630,33 @@ def camera_only_triangles(model: TriangleModel, lidar: np.ndarray, keyframes: li
     return unexplained_points(centroids, lidar, centres)
 
 
-def floor_triangles(
-    model: TriangleModel, scene: Scene, keyframes: list[Keyframe], lidar: np.ndarray
-) -> np.ndarray:
-    """``(F,)`` bool: triangles lying on the floor plane of the scene's warm-start mesh and the
-    LiDAR returns ``lidar`` ``(N, 3)`` (:func:`splat.init_mesh.fit_floor_plane`, as the ground fill
-    finds it); all False without a floor."""
+def scene_floor(scene: Scene, keyframes: list[Keyframe], lidar: np.ndarray) -> PlaneGrid | None:
+    """The floor plane of the scene's warm-start mesh and the LiDAR returns ``lidar`` ``(N, 3)``
+    seen from ``keyframes`` (:func:`splat.init_mesh.fit_floor_plane`, as the ground fill finds it),
+    or None without a floor."""
     from rig.mesh_io import load_mesh
-    from splat.floor_cells import FLOOR_CLEARANCE_M, PlaneGrid
     from splat.init_mesh import fit_floor_plane
 
     poses = np.stack([k.T_world_cam for k in keyframes])
     plane = fit_floor_plane(load_mesh(scene.mesh_path), poses, lidar)
-    triangles = model.params["vertices"].detach().cpu().double().numpy()
-    if plane is None:
-        return np.zeros(len(triangles), dtype=bool)
-    return PlaneGrid(plane, 1.0).lying_on(triangles, FLOOR_CLEARANCE_M)
+    return None if plane is None else PlaneGrid(plane, 1.0)
 
 
-def export_run(model: TriangleModel, scene: Scene, keyframes: list[Keyframe], run_dir: Path) -> dict:
+def export_run(
+    model: TriangleModel, scene: Scene, keyframes: list[Keyframe], run_dir: Path, floor: PlaneGrid | None
+) -> dict:
     """Export ``model``'s meshes into ``run_dir`` (:func:`splat.export.export_mesh`): the collision
-    mesh keeps the triangles seen from ``keyframes`` and the floor no camera sees (the ground fill's
-    completion under furniture and round the path's ends, which never trains: without it a physics
-    probe falls through there); the render mesh flags those no LiDAR return of theirs explains;
-    returns the export's summary for ``summary.json``."""
+    mesh keeps the triangles seen from ``keyframes`` and the floor no camera sees (the triangles on
+    ``floor``, :func:`scene_floor`: the ground fill's completion under furniture and round the
+    path's ends, which never trains: without it a physics probe falls through there); the render
+    mesh flags those no LiDAR return of theirs explains; returns the export's summary for
+    ``summary.json``."""
     from splat.export import export_mesh
-    from splat.lidar_points import lidar_points
 
     seen = seen_triangles(model, keyframes, scene.camera)
-    lidar = lidar_points(scene, keyframes)
-    camera_only = camera_only_triangles(model, lidar, keyframes)
-    floor = floor_triangles(model, scene, keyframes, lidar)
-    result = export_mesh(model, run_dir, seen=seen, floor=floor, camera_only=camera_only)
+    triangles = model.params["vertices"].detach().cpu().double().numpy()
+    camera_only = camera_only_triangles(model, lidar_points(scene, keyframes), keyframes)
+    result = export_mesh(model, run_dir, seen=seen, floor=on_floor(floor, triangles), camera_only=camera_only)
     return json.loads(json.dumps(asdict(result), default=str))
 
 

@@ -34,8 +34,9 @@ from splat.blocks.ray_tasks import BlockJob, cluster_cpus, connect, import_ray, 
 from splat.config import TrainConfig
 from splat.exposure import ViewExposures
 from splat.held_out_views import evaluate_views, load_held_out_views, write_renders
+from splat.lidar_points import lidar_points
 from splat.model import load_model, save_model
-from splat.trainer import TrainResult, export_run, train
+from splat.trainer import TrainResult, export_run, scene_floor, train
 
 RESULT_FILE = "result.json"
 
@@ -148,7 +149,10 @@ def _merge(
             view.color_map = torch.as_tensor(maps[view.name], dtype=torch.float32, device=config.device)
     test = evaluate_views(model, test_views, scene.camera) if test_views else {}
     write_renders(model, test_views, scene.camera, layout.renders_dir(run_dir))
-    export = export_run(model, scene, scene.split("train"), run_dir)
+    keyframes = scene.split("train")
+    export = export_run(
+        model, scene, keyframes, run_dir, scene_floor(scene, keyframes, lidar_points(scene, keyframes))
+    )
     summaries = [results[b.index]["summary"] for b in blocks]
     iterations = sum(s["iterations"] for s in summaries)
     line = {"iteration": iterations, "elapsed_s": round(wall_s, 3), "n_triangles": model.n_triangles, **test}

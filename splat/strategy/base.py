@@ -14,9 +14,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import numpy as np
 import torch
 
 from splat.config import TrainConfig
+from splat.floor_cells import PlaneGrid, on_far_floor
 from splat.model import TriangleModel
 from splat.param_rows import replace_rows
 from splat.raster import RenderOutput
@@ -54,13 +56,31 @@ class Strategy:
 
     Final prune: once ``floor_rise_start`` is reached, before the opacity floor rises, triangles
     whose opacity is below ``final_prune_opacity`` are removed (the rising floor would otherwise
-    turn them into opaque junk).
+    turn them into opaque junk), but not those on the far floor (:meth:`keep_far_floor`).
     """
 
     def __init__(self, config: TrainConfig, log: Callable[[str], None]):
         self.config = config
         self.log = log
         self.final_pruned = False
+        #: The scene's floor plane and the training cameras' centres ``(K, 3)`` (:meth:`keep_far_floor`).
+        self.floor: PlaneGrid | None = None
+        self.cameras = np.zeros((0, 3))
+
+    def keep_far_floor(self, floor: PlaneGrid | None, cameras: np.ndarray) -> None:
+        """Never prune the triangles lying on ``floor`` (the scene's floor plane) beyond
+        :data:`~splat.floor_cells.NEAR_FLOOR_M` from every camera centre ``(K, 3)`` for their
+        transparency, when the config's ``keep_far_floor`` says so."""
+        self.floor = floor if self.config.keep_far_floor else None
+        self.cameras = np.asarray(cameras, dtype=np.float64).reshape(-1, 3)
+
+    def opaque_or_far_floor(self, model: TriangleModel, min_opacity: float) -> torch.Tensor:
+        """``(F,)`` bool: the triangles a prune at ``min_opacity`` keeps: as opaque, or on the far floor."""
+        keep = model.triangle_opacity().detach() >= min_opacity
+        if self.floor is not None:
+            triangles = model.params["vertices"].detach().cpu().double().numpy()
+            keep |= torch.as_tensor(on_far_floor(self.floor, triangles, self.cameras), device=keep.device)
+        return keep
 
     def initialize(self, model: TriangleModel) -> None:
         """Start fresh statistics for ``model``'s current rows (at the start, after any row change)."""
@@ -71,7 +91,7 @@ class Strategy:
         if self.final_pruned or iteration < c.floor_rise_start * c.iterations:
             return
         self.final_pruned = True
-        keep = model.triangle_opacity().detach() >= c.final_prune_opacity
+        keep = self.opaque_or_far_floor(model, c.final_prune_opacity)
         if not bool(keep.all()):
             replace_rows(model, optimizer, keep, {k: v[:0].detach() for k, v in model.params.items()})
             self.initialize(model)

@@ -3,7 +3,8 @@ then clone or subdivide triangles drawn at random in proportion to a strategy's 
 
 One step, from the statistics gathered since the last one:
 
-1. **prune** triangles whose opacity fell below ``prune_opacity`` and, with ``prune_unseen``,
+1. **prune** triangles whose opacity fell below ``prune_opacity`` (but those on the far floor,
+   :meth:`~splat.strategy.base.Strategy.keep_far_floor`) and, with ``prune_unseen``,
    triangles never seen (no blending weight ≥ 1/255 in any rendered view);
 2. **sample** candidates without replacement in proportion to the strategy's weights, with a
    budget of ``growth_rate × F`` new triangles (capped by ``max_triangles``): a clone costs one new
@@ -102,7 +103,7 @@ class SamplingStrategy(Strategy):
         report.below_noise_floor = self.below_noise_floor(weights)
         seen = self.max_weight.to(model.device) >= ALPHA_MIN
         # An unseen triangle keeps its opacity, so only seen ones can fall below the threshold.
-        keep = model.triangle_opacity().detach() >= c.prune_opacity
+        keep = self.opaque_or_far_floor(model, c.prune_opacity)
         if c.prune_unseen:
             keep &= seen
         if not bool(keep.any()):

@@ -13,6 +13,7 @@ from training_scene import CAMERA, camera_poses, corner_mesh, write_training_sce
 
 from rig.errors import InputError
 from splat.config import make_config
+from splat.floor_cells import PlaneGrid
 from splat.init_mesh import decouple_and_scale, ground_fill
 from splat.model import TriangleModel, load_model
 from splat.param_rows import make_optimizer, replace_rows
@@ -252,6 +253,26 @@ def test_a_strategy_densifies_on_schedule_and_moves_adam_state_with_the_rows():
         assert torch.equal(state["exp_avg"][:2], before[name][kept])
         assert not state["exp_avg"][2:].any() and not state["exp_avg_sq"][2:].any()
     optimizer.step()  # the optimiser still works on the new tensors
+
+
+@pytest.mark.parametrize("keep_far_floor", [True, False])
+def test_transparent_triangles_on_the_far_floor_are_kept(keep_far_floor):
+    """A street's far road, a few pixels between the LiDAR's rings, turns transparent where the
+    background explains it: the prunes keep what lies on the floor plane beyond 8 m of every camera
+    (config keep_far_floor), and prune the floor nearer, and what lies off it."""
+    on_plane = torch.tensor([[0.0, 0, 0], [2, 0, 0], [0, 2, 0.05]])  # within 10 cm of z = 0
+    far, up = torch.tensor([20.0, 0, 0]), torch.tensor([0, 0, 0.5])
+    triangles = torch.stack([on_plane + far, on_plane, on_plane + far + up, on_plane + up])
+    model = TriangleModel.from_triangles(triangles, torch.full((4, 3, 3), 0.5), 0.6)
+    with torch.no_grad():
+        model.params["opacity"][:3] = -10.0  # transparent; the last one stays opaque
+    optimizer = _optimizer(model)
+    strategy = OpacityStrategy(_tiny_config(keep_far_floor=keep_far_floor), log=lambda *_: None)
+    strategy.keep_far_floor(PlaneGrid(np.array([0.0, 0.0, 1.0, 0.0]), 1.0), np.array([[0.0, 0.0, 1.5]]))
+    strategy.initialize(model)
+    strategy.before_step(model, optimizer, strategy.config.iterations)  # the final prune
+    kept = [0, 3] if keep_far_floor else [3]
+    assert torch.equal(model.params["vertices"].detach(), triangles[kept])
 
 
 def test_statistics_are_gathered_only_for_a_densification_still_to_come():
