@@ -5,18 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 import trimesh
 from training_scene import CAMERA, WALL_Y, camera_poses, corner_mesh, write_training_scene
 
 from rig.plane_fit import ransac_plane
 from slam_bridge.scene import KeyframeLidar, load_scene
-from splat.floor_cells import PlaneGrid, ReturnColumns, enclosed_hidden_cells
+from splat.floor_cells import PlaneGrid, ReturnColumns, enclosed_hidden_cells, on_floor
 from splat.init_mesh import fit_floor_plane, ground_fill
 from splat.lidar_points import lidar_points
 from splat.lidar_snap import snap_to_lidar
-from splat.model import TriangleModel
-from splat.trainer import floor_triangles
+from splat.trainer import scene_floor
 
 FLOOR = np.array([0.0, 0.0, 1.0, 0.0])
 
@@ -282,7 +280,8 @@ def test_plane_grid_finds_the_cells_near_points_along_the_plane():
 
 
 def test_floor_a_mapper_put_a_few_centimetres_off_the_plane_stays_floor(scene):
-    """The collision mesh keeps the floor no camera sees (:func:`splat.trainer.floor_triangles`):
+    """The collision mesh keeps the floor no camera sees (:func:`splat.floor_cells.on_floor` of
+    :func:`splat.trainer.scene_floor`):
     a street's TSDF road lies 2-4 cm below the plane fitted to the returns, and is still floor; a
     step 25 cm up and a triangle across the wall are not."""
     flat = np.array([[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.0, 0.3, 0.0]])
@@ -294,13 +293,8 @@ def test_floor_a_mapper_put_a_few_centimetres_off_the_plane_stays_floor(scene):
             [[0, 3, 0], [0.3, 3, 0], [0, 3, 0.5]],
         ]
     )
-    model = TriangleModel.from_triangles(
-        torch.from_numpy(triangles),
-        torch.full((4, 3, 3), 0.5, dtype=torch.float64),
-        torch.full((4,), 0.9, dtype=torch.float64),
-    )
     train = scene.split("train")
-    floor = floor_triangles(model, scene, train, lidar_points(scene, train))
+    floor = on_floor(scene_floor(scene, train, lidar_points(scene, train)), triangles)
     np.testing.assert_array_equal(floor, [True, True, False, False])
 
 
