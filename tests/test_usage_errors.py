@@ -5,9 +5,11 @@ covered without editing this test."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 from pathlib import Path
 
 import pytest
@@ -63,7 +65,11 @@ def _mistakes() -> list[tuple[list[str], str]]:
 
 
 def _run(args: list[str]) -> subprocess.CompletedProcess:
-    return subprocess.run([BIN / args[0], *args[1:]], capture_output=True, text=True, timeout=120)
+    # Niced: beside them another test file may be recording the virtual rig in real time, whose
+    # mock devices fall behind when these dozens of interpreters take both cores.
+    command = [BIN / args[0], *args[1:]]
+    niced = partial(os.nice, 10)
+    return subprocess.run(command, capture_output=True, text=True, timeout=120, preexec_fn=niced)
 
 
 def test_every_usage_mistake_is_short_usage_and_one_error_line() -> None:
