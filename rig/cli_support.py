@@ -135,17 +135,20 @@ def _in_existing_folder(path: Path | None) -> Path | None:
     return path
 
 
+def _path_parameter(default: Any, flags: tuple[str, ...], help: str, **checks: Any) -> Any:
+    """A Typer option with ``flags``, or an argument without them, carrying click's path ``checks``."""
+    if flags:
+        return typer.Option(default, *flags, help=help, **checks)
+    return typer.Argument(default, help=help, **checks)
+
+
 def output_file_option(default: Any, *flags: str, help: str) -> Any:
     """A Typer option (or, with no ``flags``, argument) naming a file to write: refused on the
     command line (exit 2) when it is a folder or its folder does not exist, before any work."""
-    if not flags:
-        return typer.Argument(default, dir_okay=False, callback=_in_existing_folder, help=help)
-    return typer.Option(default, *flags, dir_okay=False, callback=_in_existing_folder, help=help)
+    return _path_parameter(default, flags, help, dir_okay=False, callback=_in_existing_folder)
 
 
 def output_folder_option(default: Any, *flags: str, help: str) -> Any:
     """A Typer option (or, with no ``flags``, argument) naming a folder to write into (made when
     missing): refused on the command line (exit 2) when it is a file, before any work."""
-    if not flags:
-        return typer.Argument(default, file_okay=False, help=help)
-    return typer.Option(default, *flags, file_okay=False, help=help)
+    return _path_parameter(default, flags, help, file_okay=False)
