@@ -6,6 +6,7 @@ input ends the command with a one-line error and exit status 2, never a tracebac
 
 from __future__ import annotations
 
+import inspect
 import json
 import logging
 import sys
@@ -83,8 +84,31 @@ def _print_usage_error(exc: Exception) -> None:
     console.print(f"error: {message}", highlight=False, markup=False)
 
 
+def tidy_help(app: typer.Typer) -> None:
+    """Two conventions of the help screens, for every command of ``app`` and of its sub-apps:
+
+    - a command without a short help gets the first paragraph of its help (or docstring) as one
+      line: Typer lists a command by that paragraph with the docstring's line breaks kept, so a
+      command list showed ragged lines broken mid-phrase;
+    - an argument without a metavar shows as its name in capitals (``OUT_DIR``), as the help texts
+      write it, instead of the Python parameter's name in the usage line (``{out_dir}``).
+    """
+    for command in app.registered_commands:
+        text = command.help or inspect.getdoc(command.callback) or ""
+        if command.short_help is None and text:
+            command.short_help = " ".join(text.split("\n\n")[0].split())
+        for name, parameter in inspect.signature(command.callback).parameters.items():
+            if isinstance(parameter.default, typer.models.ArgumentInfo) and parameter.default.metavar is None:
+                parameter.default.metavar = name.upper()
+    for group in app.registered_groups:
+        if group.typer_instance is not None:
+            tidy_help(group.typer_instance)
+
+
 def run_app(app: typer.Typer, prog_name: str) -> Callable[[], None]:
-    """Wrap a Typer app into a console-script entry point that reports bad input in one line."""
+    """Wrap a Typer app into a console-script entry point that reports bad input in one line (its
+    help screens tidied by :func:`tidy_help`)."""
+    tidy_help(app)
 
     def main() -> None:
         _show_library_logs()

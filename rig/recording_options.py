@@ -21,7 +21,7 @@ RECORDING_HELP = (
     "backwards is refused. A KITTI raw drive folder (…_drive_NNNN_sync) is read in place too, its "
     "calibration files being the recording's own calibration."
 )
-RECORDING_ARGUMENT = typer.Argument(..., help=RECORDING_HELP, metavar="RECORDING...")
+RECORDING_ARGUMENT = typer.Argument(..., help=RECORDING_HELP, metavar="RECORDING")
 TOPICS_OPTION = typer.Option("auto", "--topics", metavar="MAP", help=TOPICS_HELP)
 START_OPTION = typer.Option(
     0.0, "--start", min=0.0, metavar="S", help="Read from S seconds after the recording's first message."

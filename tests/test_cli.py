@@ -1,5 +1,6 @@
 """The console scripts: help for every command, one-line errors, lazy imports."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -30,6 +31,42 @@ def test_every_lts_command_has_help() -> None:
 
     for path, command in walk(group, []):
         assert command.help or command.short_help, f"lts {' '.join(path)} has no help text"
+
+
+def test_command_lists_and_usage_lines_read_as_the_help_texts_write_them() -> None:
+    """A command is listed by one line of summary however its docstring is wrapped, and an
+    argument shows in capitals in the usage line (OUT_DIR), not as a Python name ({out_dir})."""
+    wide = {**os.environ, "COLUMNS": "400"}
+    listing = subprocess.run(
+        [BIN / "lts", "calibrate", "--help"], capture_output=True, text=True, timeout=60, env=wide
+    ).stdout
+    session = next(line for line in listing.splitlines() if line.startswith("│ session"))
+    assert "camera model, time offset, and the extrinsic" in session
+    usage = subprocess.run(
+        [BIN / "lts", "sim", "--help"], capture_output=True, text=True, timeout=60, env=wide
+    )
+    assert "Usage: lts sim [OPTIONS] {OUT_DIR}" in usage.stdout
+
+
+@pytest.mark.parametrize("module", ["lts.cli", "rig.cli"])
+def test_every_command_has_a_one_line_summary_and_capital_argument_names(module: str) -> None:
+    import importlib
+
+    import typer.main
+
+    group = typer.main.get_command(importlib.import_module(module).app)
+
+    def walk(command):
+        yield command
+        for sub in getattr(command, "commands", {}).values():
+            yield from walk(sub)
+
+    for command in walk(group):
+        if command is not group and not hasattr(command, "commands"):
+            assert command.short_help and "\n" not in command.short_help, command.name
+        for parameter in command.params:
+            if parameter.param_type_name == "argument":
+                assert parameter.metavar and parameter.metavar == parameter.metavar.upper(), command.name
 
 
 def test_importing_packages_loads_no_hardware_or_heavy_library() -> None:
