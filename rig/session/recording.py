@@ -75,6 +75,12 @@ def open_recording(
             raise InputError(
                 f"a folder of KITTI raw drives; give one of them: {', '.join(drives)}", path=path
             )
+        if fmt is None and path.suffix.lower() in (".pcap", ".pcapng"):
+            raise InputError(
+                "a packet capture, not a recording: rig record replays an Ouster pcap into a session "
+                "(rig.yaml: a device of kind ouster with pcap: and meta:, its JSON metadata)",
+                path=path,
+            )
         if fmt is None:
             what = "a folder without metadata.yaml" if path.is_dir() else "bad magic bytes"
             raise InputError(f"not a recording: {what} (expected {EXPECTED})", path=path)

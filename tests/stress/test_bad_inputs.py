@@ -377,6 +377,11 @@ def test_not_an_mcap_file(tmp_path: Path) -> None:
     _raises(lambda: session_info(path), path, "bad magic")
 
 
+def test_a_packet_capture_is_told_how_to_become_a_recording(real_data: Path) -> None:
+    path = real_data / "ouster" / "OS-0-32-U1_v2.2.0_1024x10.pcap"
+    _raises(lambda: session_info(path), path, "rig record replays an Ouster pcap")
+
+
 # Through the command line ---------------------------------------------------------------------
 
 
