@@ -125,13 +125,20 @@ def bench_ablation_command(
     sim: str = sim_option("office"),
     out: Path = OUT_OPTION,
     full: bool = FULL_OPTION,
+    seeds: int = typer.Option(
+        1,
+        "--seeds",
+        min=1,
+        help="Train every method with seeds 0..N-1: each method's mean, lowest and highest, to tell "
+        "the differences between methods from the run-to-run noise.",
+    ),
     json_out: bool = JSON_OPTION,
 ) -> None:
     """Ours vs the photometric-only TS+ baseline vs the ablations on one scene (Table III analogue)."""
     from lts.bench.training import bench_ablation, resolve_scene
 
     bench = resolve_scene(scene, gt, out, sim, not full, _log)
-    _finish(bench_ablation(bench, out, preset, _log), json_out)
+    _finish(bench_ablation(bench, out, preset, seeds, _log), json_out)
 
 
 @bench_app.command("noise")

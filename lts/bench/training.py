@@ -75,6 +75,7 @@ def train_and_score(bench: BenchScene, config, run_dir: Path, threshold_m: float
     return {
         "method": config.method,
         "preset": config.preset,
+        "seed": config.seed,
         "iterations": result.iterations,
         "init_max_triangles": config.init_max_triangles,
         "max_triangles": config.max_triangles,
@@ -200,22 +201,49 @@ def bench_profile(scene_dir: Path, out: Path, iterations: int, log: Callable = p
     return result_json
 
 
+#: The metrics the ablation summarises over seeds.
+ABLATION_KEYS = ("psnr", "ssim", "fscore", "precision", "recall", "chamfer_m", "n_triangles", "train_seconds")
+
+
 def bench_ablation(
-    bench: BenchScene, out: Path, preset: str = "default", log: Callable = print
+    bench: BenchScene, out: Path, preset: str = "default", seeds: int = 1, log: Callable = print
 ) -> dict[str, Any]:
-    """Every method on one scene: ours, the TS+ baseline and the ablations (Table III analogue)."""
+    """Every method on one scene: ours, the TS+ baseline and the ablations (Table III analogue),
+    each trained with seeds ``0 … seeds-1``; with more than one, ``summary`` gives each method's
+    mean, lowest and highest of :data:`ABLATION_KEYS` (the run-to-run noise beside the
+    differences between methods)."""
     from splat.config import METHODS, make_config
 
-    rows = _run_all(bench, [make_config(m, preset) for m in METHODS], out, lambda c: c.method, log)
+    configs = [make_config(m, preset, seed=seed) for seed in range(seeds) for m in METHODS]
+    name = (lambda c: c.method) if seeds == 1 else (lambda c: f"{c.method}_seed{c.seed}")
+    rows = _run_all(bench, configs, out, name, log)
+    summary = {method: seed_spread([r for r in rows if r["method"] == method]) for method in METHODS}
     result = {
         "scene": str(bench.scene_dir),
         "preset": preset,
+        "seeds": seeds,
         "rows": rows,
+        "summary": summary,
         "plot": str(out / "ablation.png"),
     }
-    _plot_bars(rows, out / "ablation.png")
+    _plot_bars(summary, out / "ablation.png")
     _write(out, "bench_ablation", result)
     return result
+
+
+def seed_spread(rows: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
+    """Mean, lowest and highest of each of :data:`ABLATION_KEYS` over ``rows`` (one method's runs
+    with different seeds); a metric some run lacks is left out."""
+    spread = {}
+    for key in ABLATION_KEYS:
+        values = [r[key] for r in rows if r.get(key) is not None]
+        if values and len(values) == len(rows):
+            spread[key] = {
+                "mean": float(np.mean(values)),
+                "min": float(min(values)),
+                "max": float(max(values)),
+            }
+    return spread
 
 
 def bench_noise(
@@ -254,13 +282,18 @@ def _plot_pareto(rows: list[dict], front: list[int], path: Path) -> None:
     save_figure(plt, fig, path)
 
 
-def _plot_bars(rows: list[dict], path: Path) -> None:
+def _plot_bars(summary: dict[str, dict[str, dict[str, float]]], path: Path) -> None:
+    """Each method's mean as a bar, its lowest and highest over the seeds as an error bar."""
     plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.5), dpi=120)
-    names = [r["method"] for r in rows]
+    names = list(summary)
     panels = (("psnr", "PSNR (dB)"), ("fscore", "F-score @10 cm"), ("chamfer_m", "Chamfer (m)"))
     for ax, (key, label) in zip(axes, panels, strict=True):
-        ax.bar(names, [r[key] for r in rows], color=["#c0392b" if n == "ours" else "#7f8c8d" for n in names])
+        mean = np.array([summary[n][key]["mean"] for n in names])
+        low = mean - [summary[n][key]["min"] for n in names]
+        high = np.array([summary[n][key]["max"] for n in names]) - mean
+        colours = ["#c0392b" if n == "ours" else "#7f8c8d" for n in names]
+        ax.bar(names, mean, yerr=np.stack([low, high]), capsize=3, color=colours)
         ax.set_title(label)
         ax.tick_params(axis="x", rotation=45)
     save_figure(plt, fig, path)

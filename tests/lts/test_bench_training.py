@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from lts.bench.training import _plot_bars, _plot_noise, _plot_pareto, pareto_front
+from lts.bench.training import _plot_bars, _plot_noise, _plot_pareto, pareto_front, seed_spread
 
 
 def _row(seconds: float, chamfer: float, **extra) -> dict:
@@ -20,10 +20,19 @@ def test_pareto_front_keeps_the_runs_nothing_beats_on_both_time_and_error():
     assert pareto_front(rows) == [1, 0, 3]  # 20 s / 0.05 is beaten by 10 s / 0.05; 6 s / 0.09 by 5 s / 0.08
 
 
+def test_seed_spread_gives_each_metric_its_mean_lowest_and_highest():
+    runs = [_row(10, 0.04, psnr=30.0), _row(14, 0.05, psnr=31.0), _row(12, 0.03, psnr=30.5)]
+    spread = seed_spread(runs)
+    assert spread["psnr"] == {"mean": 30.5, "min": 30.0, "max": 31.0}
+    assert spread["train_seconds"] == {"mean": 12.0, "min": 10.0, "max": 14.0}
+    assert spread["chamfer_m"]["min"] == 0.03 and spread["chamfer_m"]["max"] == 0.05
+    assert "ssim" not in spread  # no run reports it
+
+
 def test_plots_are_written(tmp_path):
     rows = [_row(1, 0.1), _row(2, 0.05, method="tsplus", init_noise_m=0.1)]
     _plot_pareto(rows, pareto_front(rows), tmp_path / "sub" / "pareto.png")
-    _plot_bars(rows, tmp_path / "sub" / "bars.png")
+    _plot_bars({r["method"]: seed_spread([r]) for r in rows}, tmp_path / "sub" / "bars.png")
     _plot_noise(rows, tmp_path / "sub" / "noise.png")
     for name in ("pareto.png", "bars.png", "noise.png"):
         assert (tmp_path / "sub" / name).stat().st_size > 1000
