@@ -31,6 +31,12 @@ FLOOR_CLEARANCE_M = 0.1
 STANDING_SPAN_M = 0.4
 #: Returns within this of the floor plane are ground the LiDAR saw: the floor, a kerb, a pavement.
 GROUND_BAND_M = 0.3
+#: Returns above this height but within GROUND_BAND_M, in a cell with none higher up to
+#: WALL_HEIGHT_M, lie on raised level ground (a street's pavement, a step): the floor does not run
+#: on under its slab. Each stands for the cells within RAISED_GROUND_REACH_M of it, the gap between
+#: a spinning LiDAR's rings on a pavement beside the car.
+RAISED_GROUND_M = 0.05
+RAISED_GROUND_REACH_M = 0.45
 #: Within this distance of a camera along the floor the ground fill lays fine cells and the floor is
 #: near enough for many pixels and the LiDAR's returns to train it; beyond it a street's road lies
 #: between a spinning LiDAR's far rings, a few pixels high (a room's floor ends within it).
@@ -188,11 +194,14 @@ def enclosed_hidden_cells(
     saw through mesh holes) cover, but that the room closes in on.
 
     A connected patch of such cells of which half or more hold a LiDAR return (``lidar``
-    ``(N, 3)``) within :data:`GROUND_BAND_M` of the plane is ground that was seen, not hidden, and
-    is left out: a street's pavement a kerb above the road, or road the mapper's mesh missed
-    between the rings (the LiDAR fill covers that). Patch by patch, so that no strip is cut out
-    of the floor under furniture; the returns do not join the footprint, since far rings would
-    close in on open ground.
+    ``(N, 3)``) within :data:`GROUND_BAND_M` of the plane, or lie within
+    :data:`RAISED_GROUND_REACH_M` of a return on raised level ground (:data:`RAISED_GROUND_M`), is
+    ground that was seen, not hidden, and is left out: a street's pavement a kerb above the road
+    (its returns lie as far apart as the LiDAR's rings, more than a cell), or road the mapper's
+    mesh missed between the rings (the LiDAR fill covers that). Patch by patch, so that no strip
+    is cut out of the floor under furniture (the returns on a box's sides stand in cells with
+    higher ones); the returns do not join the footprint, since far rings would close in on open
+    ground.
 
     The mesh is sampled by area (about nine samples per cell). Up-facing samples within half a
     cell of the plane are floor; from there up to :data:`WALL_HEIGHT_M` they are structure
@@ -226,8 +235,7 @@ def enclosed_hidden_cells(
         image[tuple((c[inside] - low).T)] = True
         return image
 
-    disk = np.hypot(*np.mgrid[-radius : radius + 1, -radius : radius + 1]) <= radius
-    closed = ndimage.binary_closing(raster(footprint), structure=disk)
+    closed = ndimage.binary_closing(raster(footprint), structure=_disk(radius))
     enclosed = ndimage.binary_fill_holes(closed)
     # Closing the floor over one cell keeps cells that random sampling happened to miss out.
     floor_cover = ndimage.binary_closing(raster(covered), structure=np.ones((3, 3), dtype=bool))
@@ -236,11 +244,21 @@ def enclosed_hidden_cells(
     walls, count = np.unique(cells[wall], axis=0, return_counts=True)
     hidden = enclosed & ~floor_cover & ~raster(walls[count >= MIN_WALL_SAMPLES]) & ~raster(cells[pit])
     if lidar is not None:
-        ground = raster(grid.cells(lidar[np.abs(grid.heights(lidar)) < GROUND_BAND_M]))
+        heights = grid.heights(lidar)
+        ground = raster(grid.cells(lidar[np.abs(heights) < GROUND_BAND_M]))
+        raised = raster(grid.cells(lidar[(heights > RAISED_GROUND_M) & (heights < GROUND_BAND_M)]))
+        raised &= ~raster(grid.cells(lidar[(heights >= GROUND_BAND_M) & (heights < WALL_HEIGHT_M)]))
+        reach = int(np.ceil(RAISED_GROUND_REACH_M / grid.cell_m))
+        ground |= ndimage.binary_dilation(raised, structure=_disk(reach))
         parts, count = ndimage.label(hidden, structure=np.ones((3, 3), dtype=bool))
         seen_share = ndimage.mean(ground, parts, np.arange(1, count + 1))
         hidden &= np.concatenate([[False], seen_share < 0.5])[parts]
     return np.argwhere(hidden) + low
+
+
+def _disk(radius: int) -> np.ndarray:
+    """``(2r+1, 2r+1)`` bool: the cells within ``radius`` cells of the centre one."""
+    return np.hypot(*np.mgrid[-radius : radius + 1, -radius : radius + 1]) <= radius
 
 
 def on_floor(floor: PlaneGrid | None, triangles: np.ndarray) -> np.ndarray:

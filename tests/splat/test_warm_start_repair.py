@@ -269,6 +269,12 @@ def test_ground_the_lidar_saw_is_not_completed_as_hidden_floor():
     )
     assert without[0] >= 0.8 * 320 and without[1] >= 80
     assert with_returns == (0, without[1])
+    # A spinning LiDAR's rings on the pavement: a return every 40 cm across it, fewer than one per
+    # cell, still mark it as seen; returns on the box's sides (cells with higher ones) do not.
+    rings = np.column_stack([*np.mgrid[0.05:4:0.1, 3.25:4:0.4].reshape(2, -1), np.full(40 * 2, 0.15)])
+    sides = np.array([[x, 1.52, h] for x in np.arange(1.55, 2.5, 0.1) for h in (0.1, 0.2, 0.4, 0.55)])
+    sparse = strip_and_box(enclosed_hidden_cells(mesh, grid, none, lidar=np.vstack([rings, sides])))
+    assert sparse == (0, without[1])
 
 
 def test_plane_grid_finds_the_cells_near_points_along_the_plane():
