@@ -72,6 +72,16 @@ def _run(args: list[str]) -> subprocess.CompletedProcess:
     return subprocess.run(command, capture_output=True, text=True, timeout=120, preexec_fn=niced)
 
 
+def test_every_command_has_a_one_line_summary_and_capital_argument_names() -> None:
+    """Command lists show each command's one-line summary; usage lines name arguments in capitals,
+    as the help texts write them (rig.cli_support.tidy_help)."""
+    for words, command in _leaves():
+        assert command.short_help and "\n" not in command.short_help, words
+        for parameter in command.params:
+            if parameter.param_type_name == "argument":
+                assert parameter.metavar and parameter.metavar == parameter.metavar.upper(), words
+
+
 def test_every_usage_mistake_is_short_usage_and_one_error_line() -> None:
     cases = _mistakes()
     assert len(cases) > 60  # every command of both apps
