@@ -171,6 +171,9 @@ def record(
                 finally:
                     rig.stop_devices()
                 summary["sim"] = rig.ground_truth()
+                summary["sim"]["shortfalls"] = rig.shortfalls(summary["written"], summary["duration_s"])
+            for line in summary["sim"]["shortfalls"]:
+                console.print(f"warning: {line}", style="yellow", highlight=False, markup=False)
         else:
             from rig.record import build_sources
             from rig.record_config import load_config

@@ -50,6 +50,19 @@ class SimRig:
         if self.devices is not None:
             self.devices.stop()
 
+    def shortfalls(self, written: dict[str, int], duration_s: float, share: float = 0.8) -> list[str]:
+        """One line for each topic the recorder wrote less than ``share`` of what the fakes sent
+        over ``duration_s`` of recording (a recorder that falls behind loses messages)."""
+        lines = []
+        for topic, rate in self.expected_rates_hz.items():
+            count = written.get(topic, 0)
+            if count < share * rate * duration_s:
+                lines.append(
+                    f"{topic}: {count} messages in {duration_s:.1f} s ({count / duration_s:.1f} Hz), "
+                    f"the mock devices sent {rate:.0f} Hz: the recorder fell behind or a device stopped"
+                )
+        return lines
+
     def ground_truth(self) -> dict[str, Any]:
         """What the fakes did: corrupted packets, unplug intervals, clocks, expected rates."""
         return {

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from rig.mock.sim_rig import SimRig
 from rig.session import recover, session_info
 from tests.session.conftest import RATES
 
@@ -58,6 +59,15 @@ def test_record_sim_rates_within_2_percent_and_crc_errors_counted(
     assert corrupted > 0 and 0 < devices["scan2d"]["crc_errors"] <= corrupted
     assert report["clock"]["camera"]["n_pairs"] > 100
     assert report["session"]["device_ids"]["camera"] == "FAKE-OAK-0001"
+    assert summary["sim"]["shortfalls"] == [] and "warning" not in result.stderr
+
+
+def test_a_topic_the_recorder_wrote_too_little_of_is_named() -> None:
+    rig_ = SimRig(scene=None, sources=[], devices=None, oak=None)  # type: ignore[arg-type]
+    rig_.expected_rates_hz = {"/lidar/points": 10.0, "/imu/data": 200.0}
+    lines = rig_.shortfalls({"/lidar/points": 91, "/imu/data": 4000}, duration_s=20.0)
+    assert len(lines) == 1 and lines[0].startswith("/lidar/points: 91 messages in 20.0 s (4.5 Hz)")
+    assert "10 Hz" in lines[0]
 
 
 def _start(scene_dir: Path, out: Path) -> subprocess.Popen:
