@@ -1,7 +1,7 @@
 """``lts demo``: a virtual-rig scene recorded through the mock devices and reconstructed.
 
 1. ``lts sim DIR/sim --preset room`` (``--quick``: the simulator's 3 s, 160×120 run);
-2. ``rig record --sim DIR/sim --out DIR/session.mcap`` — the same drivers, recorder and clock
+2. ``rig record --sim DIR/sim --once --out DIR/session.mcap`` — the same drivers, recorder and clock
    estimation a robot uses, fed by fake devices that speak the real wire protocols;
 3. the ground truth moved onto the recording's clock (``DIR/ground_truth``): the recorder stamps
    with its own host clock, so the true trajectory is shifted by the difference of the first
@@ -68,29 +68,13 @@ def simulate_preset(out: Path, preset: str, quick: bool, seed: int = 0) -> None:
     simulate(config.quick() if quick else config, out)
 
 
-def session_duration_s(session: Path) -> float:
-    """Seconds from the first to the last message of ``session``."""
-    from rig.session import SessionReader
-
-    topics = SessionReader(session).topics().values()
-    return (max(t.last_t for t in topics) - min(t.first_t for t in topics)) / 1e9
-
-
 def record_through_mock_devices(sim_dir: Path, out: Path) -> None:
     """``rig record --sim``: the robot-side recorder (its own process, in real time) fed by mock
     devices replaying ``sim_dir``; one pass of the scene, written to ``out`` when complete."""
     partial = out.with_suffix(".partial.mcap")
-    duration = f"{session_duration_s(sim_dir / 'session.mcap'):.2f}"
-    command = [
-        str(Path(sys.executable).with_name("rig")),
-        "record",
-        "--sim",
-        str(sim_dir),
-        "--out",
-        str(partial),
-    ]
-    # The mock devices replay the scene in a loop: record one pass, not the jump back to its start.
-    if subprocess.run([*command, "--duration", duration]).returncode != 0:
+    # One pass (--once), not the jump back to the scene's start that the looping devices make.
+    command = [str(Path(sys.executable).with_name("rig")), "record", "--sim", str(sim_dir), "--once"]
+    if subprocess.run([*command, "--out", str(partial)]).returncode != 0:
         raise RuntimeError(f"rig record failed: {' '.join(command[1:])}")
     partial.replace(out)
 
@@ -122,7 +106,7 @@ def run_demo(
     stages = StageRunner(out, ("simulate", "record", "ground truth"), log)
     key = ["lts sim", str(sim_dir), "--preset", "room", *(["--quick"] if quick else [])]
     stages.run("simulate", key, [], sim_dir / "session.mcap", lambda: simulate_preset(sim_dir, "room", quick))
-    key = ["rig record", "--sim", str(sim_dir), "--out", str(session)]
+    key = ["rig record", "--sim", str(sim_dir), "--once", "--out", str(session)]
     stages.run("record", key, [sim_dir], session, lambda: record_through_mock_devices(sim_dir, session))
 
     def move_ground_truth() -> None:

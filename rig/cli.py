@@ -113,7 +113,9 @@ def _status_table(s: dict[str, Any]) -> Any:
     return table
 
 
-def _record(recording: Any, duration: float | None, after_open: Any = None) -> dict[str, Any]:
+def _record(
+    recording: Any, duration: float | None, after_open: Any = None, sources_done: Any = None
+) -> dict[str, Any]:
     from rich.live import Live
 
     stop = threading.Event()
@@ -121,7 +123,11 @@ def _record(recording: Any, duration: float | None, after_open: Any = None) -> d
     try:
         with Live(console=console, refresh_per_second=2, transient=not console.is_terminal) as live:
             return recording.run(
-                duration, stop, on_tick=lambda s: live.update(_status_table(s)), after_open=after_open
+                duration,
+                stop,
+                on_tick=lambda s: live.update(_status_table(s)),
+                after_open=after_open,
+                sources_done=sources_done,
             )
     finally:
         for sig, handler in previous.items():
@@ -147,6 +153,12 @@ def record(
     unplug_for: float = typer.Option(
         1.0, "--unplug-for", help="--sim: seconds the serial LiDAR stays unplugged."
     ),
+    once: bool = typer.Option(
+        False,
+        "--once",
+        help="--sim: play the scene once and stop when it ends (by default the mock devices loop it "
+        "until --duration or Ctrl-C).",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as one JSON object."),
 ) -> None:
     """Record a session from the devices of a rig.yaml, or from a simulated scene through mock devices.
@@ -159,15 +171,19 @@ def record(
 
     if (config is None) == (sim is None):
         raise InputError("give exactly one of --config RIG.yaml or --sim SCENE_DIR", field="--config/--sim")
+    if once and sim is None:
+        raise InputError("plays a simulated scene once; give the scene with --sim SCENE_DIR", field="--once")
     try:
         if sim is not None:
             from rig.mock.sim_rig import build_sim_rig
 
             with tempfile.TemporaryDirectory(prefix="rig-sim-") as work:
-                rig = build_sim_rig(sim, work, corrupt_rate, unplug_at, unplug_for)
+                rig = build_sim_rig(sim, work, corrupt_rate, unplug_at, unplug_for, once=once)
                 meta = {"sim": rig.ground_truth()}
                 try:
-                    summary = _record(Recording(rig.sources, out, meta), duration, rig.start_devices)
+                    summary = _record(
+                        Recording(rig.sources, out, meta), duration, rig.start_devices, rig.finished
+                    )
                 finally:
                     rig.stop_devices()
                 summary["sim"] = rig.ground_truth()

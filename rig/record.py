@@ -146,10 +146,13 @@ class Recording:
         stop: threading.Event,
         on_tick: Callable[[dict[str, Any]], None] | None = None,
         after_open: Callable[[], None] | None = None,
+        sources_done: Callable[[], bool] | None = None,
     ) -> dict[str, Any]:
         """Record; returns the summary (topics written, drops, device health, clocks, error).
 
-        ``after_open`` runs once every driver is open (mock devices start sending there)."""
+        ``after_open`` runs once every driver is open (mock devices start sending there); the
+        recording ends when ``sources_done()`` says so (mock devices that played their scene once),
+        as it does when every driver is :attr:`~rig.drivers.base.Driver.finished`."""
         opened: list[Driver] = []
         try:
             for s in self.sources:
@@ -178,6 +181,8 @@ class Recording:
                 if duration_s is not None and time.monotonic() - self.started >= duration_s:
                     break
                 if all(s.driver.finished for s in self.sources):  # recordings replayed to the end
+                    break
+                if sources_done is not None and sources_done():
                     break
                 stop.wait(0.25)
                 if on_tick is not None:

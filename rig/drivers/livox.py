@@ -120,6 +120,13 @@ class LivoxDriver(DeviceClockDriver):
         self._parts.append((p.points, p.reflectivity, p.timestamp_ns + p.point_offsets_ns()))
         return out
 
+    def drain(self) -> list[Message]:
+        """The messages held back, and the scan in progress: at the end of a recording its
+        packets are kept as a (possibly partial) scan rather than lost."""
+        scan = self._finish()
+        held = self.stamper.push(scan) if scan is not None else []
+        return held + self.stamper.flush()
+
     def _finish(self) -> Scan | None:
         if not self._parts:
             return None

@@ -33,13 +33,15 @@ def _main(
     scene_dir: str,
     link: str,
     serial_options: dict[str, Any],
+    once: bool,
     ready: Any,
     go: Any,
     stop: Any,
+    sent: Any,
     result: Any,
 ) -> None:
     threading.Thread(target=_watch_parent, args=(parent_pid, stop), daemon=True).start()
-    scene = Scene(scene_dir)
+    scene = Scene(scene_dir, once)
     serial = FakeSerialLidar(
         link, latest_slice(scene.scans()), "ld06", LD06_RATE_HZ, **serial_options
     ).start()
@@ -54,7 +56,9 @@ def _main(
             imu = scene.imu() if "imu" in scene.streams else None
             livox = FakeLivox(scene.scans(), imu, "127.0.0.1", ports[0], ports[1]).start()
             break
-        stop.wait()
+        while not stop.wait(0.1):
+            if livox is not None and not livox.sending:
+                sent.set()
     finally:
         if livox is not None:
             livox.stop()
@@ -74,9 +78,11 @@ def _main(
 class DeviceProcess:
     """The fake serial LiDAR and fake Livox of a scene, running in a child process."""
 
-    def __init__(self, scene_dir: str | Path, link: str | Path, **serial_options: Any) -> None:
+    def __init__(
+        self, scene_dir: str | Path, link: str | Path, once: bool = False, **serial_options: Any
+    ) -> None:
         ctx = mp.get_context("spawn")  # the parent has threads: never fork it
-        self._ready, self._stop = ctx.Event(), ctx.Event()
+        self._ready, self._stop, self._sent = ctx.Event(), ctx.Event(), ctx.Event()
         self._go: Any = ctx.Queue()
         self._result: Any = ctx.Queue()
         self._process = ctx.Process(
@@ -86,9 +92,11 @@ class DeviceProcess:
                 str(scene_dir),
                 str(link),
                 serial_options,
+                once,
                 self._ready,
                 self._go,
                 self._stop,
+                self._sent,
                 self._result,
             ),
             name="rig-mock-devices",
@@ -106,6 +114,11 @@ class DeviceProcess:
     def send_to(self, point_port: int, imu_port: int) -> None:
         """Start the fake Livox, sending to these UDP ports on 127.0.0.1."""
         self._go.put((point_port, imu_port))
+
+    @property
+    def livox_sent(self) -> bool:
+        """Whether the fake Livox has sent its whole scene (only ever, when played once)."""
+        return self._sent.is_set()
 
     def stop(self) -> dict[str, Any]:
         self._stop.set()

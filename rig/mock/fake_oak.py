@@ -86,5 +86,10 @@ class FakeOakSource:
                 self._next[name] = next(it, None)
         return out
 
+    @property
+    def exhausted(self) -> bool:
+        """Whether every stream has ended (after :meth:`open`): a scene played once."""
+        return bool(self._next) and all(v is None for v in self._next.values())
+
     def close(self) -> None:
         self._stop.set()

@@ -47,6 +47,11 @@ class FakeLivox:
         self._thread.start()
         return self
 
+    @property
+    def sending(self) -> bool:
+        """Whether the sender still runs (it ends when its streams end, or on :meth:`stop`)."""
+        return self._thread is not None and self._thread.is_alive()
+
     def stop(self) -> None:
         self._stop.set()
         if self._thread is not None:

@@ -1,9 +1,9 @@
-"""A virtual-rig scene (``SCENE_DIR/session.mcap``) as looping streams of timed messages.
+"""A virtual-rig scene (``SCENE_DIR/session.mcap``) as streams of timed messages.
 
 Mock devices replay the simulated frames, scans and IMU samples in real time: each stream yields
 ``(t_rel_ns, message)`` with ``t_rel_ns`` the simulated host time since the first message of the
 session, repeating each stream (shifted by its count times its period) when a recording outlasts
-the session.
+the session, unless the scene is played once.
 """
 
 from __future__ import annotations
@@ -46,10 +46,12 @@ class StreamInfo:
 
 
 class Scene:
-    """The streams of a simulated session, found by message type."""
+    """The streams of a simulated session, found by message type; ``once``: each stream ends after
+    one pass instead of repeating."""
 
-    def __init__(self, scene_dir: str | Path) -> None:
+    def __init__(self, scene_dir: str | Path, once: bool = False) -> None:
         self.dir = Path(scene_dir)
+        self.once = once
         self.session = self.dir / "session.mcap" if self.dir.is_dir() else self.dir
         if not self.session.is_file():
             raise InputError("no session.mcap in the scene folder (expected `lts sim` output)", path=self.dir)
@@ -81,7 +83,7 @@ class Scene:
         # between streams matters beyond the first lap.
         lap_ns = info.count * info.period_ns if info.count > 1 else self.span_ns + 1
         lap = 0
-        while True:
+        while lap == 0 or not self.once:
             for m in self.reader.messages([info.topic]):
                 t_rel = m.t_host - self.t0 + lap * lap_ns
                 if role == "image":

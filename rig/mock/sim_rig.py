@@ -13,6 +13,7 @@ scene's own session.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,9 @@ from rig.record import Source
 from rig.session.writer import DEFAULT_TOPICS
 
 SCAN2D_TOPIC = "/scan2d/points"
+#: A scene played once is over this long after its fakes sent their last message, so that the
+#: drivers read what is still on its way (a UDP socket's queue, a jittered camera frame).
+ONE_PASS_GRACE_S = 0.5
 
 
 @dataclass
@@ -39,6 +43,20 @@ class SimRig:
     devices: DeviceProcess | None
     oak: FakeOakSource | None
     expected_rates_hz: dict[str, float] = field(default_factory=dict)
+    _sent_at: float | None = None
+
+    def finished(self) -> bool:
+        """Whether a scene played once is over: every fake has sent all of it, ``ONE_PASS_GRACE_S``
+        ago; never for a looping scene. Meanwhile the fake 2D LiDAR spins on over the last scan, as
+        on a robot standing at the end of its path."""
+        if not self.scene.once:
+            return False
+        sent = (self.oak is None or self.oak.exhausted) and (self.devices is None or self.devices.livox_sent)
+        if not sent:
+            return False
+        if self._sent_at is None:
+            self._sent_at = time.monotonic()
+        return time.monotonic() - self._sent_at >= ONE_PASS_GRACE_S
 
     def start_devices(self) -> None:
         livox = next((s.driver for s in self.sources if isinstance(s.driver, LivoxDriver)), None)
@@ -81,13 +99,15 @@ def build_sim_rig(
     unplug_for_s: float = 1.0,
     oak_drift_ppm: float = 50.0,
     oak_jitter_ms: float = 3.0,
+    once: bool = False,
 ) -> SimRig:
-    """Fake devices fed by the scene in ``scene_dir`` (``session.mcap``) and their drivers.
+    """Fake devices fed by the scene in ``scene_dir`` (``session.mcap``) and their drivers;
+    ``once``: the scene is played once (:meth:`SimRig.finished`) instead of in a loop.
 
     Starts the device process (the serial LiDAR's pty link is created in ``work_dir``). Rates:
     camera, LiDAR and IMU at the scene's rates; the 2D LiDAR at 10 Hz.
     """
-    scene = Scene(scene_dir)
+    scene = Scene(scene_dir, once)
     rates = scene.rates()
     sources: list[Source] = []
     oak = devices = None
@@ -117,6 +137,7 @@ def build_sim_rig(
         devices = DeviceProcess(
             scene.dir,
             link,
+            once,
             corrupt_rate=corrupt_rate,
             unplug_at_s=unplug_at_s,
             unplug_for_s=unplug_for_s,

@@ -62,6 +62,40 @@ def test_record_sim_rates_within_2_percent_and_crc_errors_counted(
     assert summary["sim"]["shortfalls"] == [] and "warning" not in result.stderr
 
 
+def test_record_sim_once_records_one_pass_and_stops(virtual_rig_scene: Path, tmp_path: Path) -> None:
+    out = tmp_path / "once.mcap"
+    result = rig("record", "--sim", virtual_rig_scene, "--once", "--out", out, "--json")
+    assert result.returncode == 0, result.stderr
+    scene, recorded = info_here(virtual_rig_scene / "session.mcap"), info_here(out)
+    for topic in ("/camera/image/compressed", "/lidar/points", "/imu/data"):
+        # Every message of the pass, none of a second one (looped stamps would stretch the span).
+        assert recorded["topics"][topic]["count"] == scene["topics"][topic]["count"], topic
+        span = [
+            (t["last_t"] - t["first_t"]) / 1e9 for t in (recorded["topics"][topic], scene["topics"][topic])
+        ]
+        assert span[0] == pytest.approx(span[1], abs=0.02), (topic, span)
+    assert json.loads(result.stdout)["duration_s"] < scene["duration_s"] + 2.0
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        ([], "--config/--sim: give exactly one of --config RIG.yaml or --sim SCENE_DIR"),
+        (
+            ["--config", "rig.yaml", "--once"],
+            "--once: plays a simulated scene once; give the scene with --sim SCENE_DIR",
+        ),
+    ],
+)
+def test_record_without_a_source_or_once_without_sim_is_one_line(
+    tmp_path: Path, args: list[str], says: str
+) -> None:
+    result = rig("record", "--out", tmp_path / "s.mcap", *args)
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    assert result.stderr.strip().splitlines() == [f"error: {says}"], result.stderr
+    assert not (tmp_path / "s.mcap").exists()
+
+
 def test_a_topic_the_recorder_wrote_too_little_of_is_named() -> None:
     rig_ = SimRig(scene=None, sources=[], devices=None, oak=None)  # type: ignore[arg-type]
     rig_.expected_rates_hz = {"/lidar/points": 10.0, "/imu/data": 200.0}
