@@ -84,15 +84,32 @@ def _print_usage_error(exc: Exception) -> None:
     console.print(f"error: {message}", highlight=False, markup=False)
 
 
+def _flags_show_no_type() -> None:
+    """Typer's rich help lists a flag (``--json``, ``--help``) with the type ``<bool>``, as if it
+    took a value (``--json true`` is then a usage error); its plain help shows none, as here."""
+    option = getattr(typer.core, "TyperOption", None)
+    shown = getattr(option, "display_type_rich", None)
+    if shown is None or getattr(shown, "flags_show_no_type", False):
+        return
+
+    def display_type_rich(self: Any, ctx: click.Context) -> str | None:
+        return None if self.is_flag and not self.count else shown(self, ctx)
+
+    display_type_rich.flags_show_no_type = True  # type: ignore[attr-defined]
+    option.display_type_rich = display_type_rich  # type: ignore[union-attr]
+
+
 def tidy_help(app: typer.Typer) -> None:
-    """Two conventions of the help screens, for every command of ``app`` and of its sub-apps:
+    """Three conventions of the help screens, for every command of ``app`` and of its sub-apps:
 
     - a command without a short help gets the first paragraph of its help (or docstring) as one
       line: Typer lists a command by that paragraph with the docstring's line breaks kept, so a
       command list showed ragged lines broken mid-phrase;
     - an argument without a metavar shows as its name in capitals (``OUT_DIR``), as the help texts
-      write it, instead of the Python parameter's name in the usage line (``{out_dir}``).
+      write it, instead of the Python parameter's name in the usage line (``{out_dir}``);
+    - a flag shows no type (:func:`_flags_show_no_type`).
     """
+    _flags_show_no_type()
     for command in app.registered_commands:
         text = command.help or inspect.getdoc(command.callback) or ""
         if command.short_help is None and text:

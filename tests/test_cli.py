@@ -34,8 +34,9 @@ def test_every_lts_command_has_help() -> None:
 
 
 def test_command_lists_and_usage_lines_read_as_the_help_texts_write_them() -> None:
-    """A command is listed by one line of summary however its docstring is wrapped, and an
-    argument shows in capitals in the usage line (OUT_DIR), not as a Python name ({out_dir})."""
+    """A command is listed by one line of summary however its docstring is wrapped, an argument
+    shows in capitals in the usage line (OUT_DIR), not as a Python name ({out_dir}), and a flag
+    shows no type (not `--quick <bool>`, which reads as if it took a value)."""
     wide = {**os.environ, "COLUMNS": "400"}
     listing = subprocess.run(
         [BIN / "lts", "calibrate", "--help"], capture_output=True, text=True, timeout=60, env=wide
@@ -46,6 +47,9 @@ def test_command_lists_and_usage_lines_read_as_the_help_texts_write_them() -> No
         [BIN / "lts", "sim", "--help"], capture_output=True, text=True, timeout=60, env=wide
     )
     assert "Usage: lts sim [OPTIONS] {OUT_DIR}" in usage.stdout
+    flags = [line for line in usage.stdout.splitlines() if "--quick" in line or "--help" in line]
+    assert len(flags) == 2 and not any("<bool>" in line for line in flags), flags
+    assert "<int>" in usage.stdout  # options that take a value keep their type
 
 
 def test_importing_packages_loads_no_hardware_or_heavy_library() -> None:
