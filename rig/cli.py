@@ -167,7 +167,7 @@ def record(
     status 1.
     """
     from rig.drivers.base import DeviceError
-    from rig.record import Recording
+    from rig.record import Recording, silent_devices
 
     if (config is None) == (sim is None):
         raise InputError("give exactly one of --config RIG.yaml or --sim SCENE_DIR", field="--config/--sim")
@@ -214,10 +214,13 @@ def record(
         raise SystemExit(1) from exc
     if summary.get("error"):
         console.print(f"[bold red]recording stopped:[/] {summary['error']}", highlight=False)
+    for line in silent_devices(summary):
+        console.print(f"warning: {line}", style="yellow", highlight=False, markup=False)
     if json_out:
         emit_json(summary)
     else:
-        console.print(f"wrote {out}: " + ", ".join(f"{t} {n}" for t, n in sorted(summary["written"].items())))
+        written = ", ".join(f"{t} {n}" for t, n in sorted(summary["written"].items()))
+        console.print(f"wrote {out}: {written or 'no messages'}")
     if summary.get("error"):
         raise SystemExit(1)  # the file is valid, but the recording stopped early
 

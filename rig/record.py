@@ -32,6 +32,17 @@ class Source:
     camera: CameraModel | None = None
 
 
+def silent_devices(summary: dict[str, Any]) -> list[str]:
+    """One line for each device of a recording's ``summary`` (:meth:`Recording.run`) that sent
+    nothing: a LiDAR streaming to another address, a blocked port, a camera another program holds."""
+    return [
+        f"{name} ({device['device_id']}) sent nothing in {summary['duration_s']:.1f} s"
+        + (f": {device['error']}" if device.get("error") else ": check its cable, address and port")
+        for name, device in summary.get("devices", {}).items()
+        if device.get("received", 0) == 0 and device.get("packets", 0) == 0
+    ]
+
+
 def build_sources(config: RigConfig) -> list[Source]:
     """Drivers for the devices of a ``rig.yaml`` (nothing is opened yet)."""
     from rig.drivers.ld06 import Ld06Driver

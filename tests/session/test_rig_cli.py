@@ -111,7 +111,21 @@ def test_record_from_config_with_two_serial_lidars(tmp_path: Path) -> None:
     report = json.loads(rig("info", out, "--json").stdout)
     assert report["session"]["rig_yaml"]["clock"] == {"window_s": 30}
     assert report["topics"]["/back/scan"]["count"] == summary["written"]["/back/scan"]
-    assert not report["truncated"]
+    assert not report["truncated"] and "warning" not in result.stderr
+
+
+def test_a_device_that_sends_nothing_is_named_and_the_file_still_valid(tmp_path: Path) -> None:
+    config = tmp_path / "rig.yaml"  # a Livox listening where nothing streams
+    config.write_text(
+        "devices:\n  - {name: lidar, kind: livox, host: 127.0.0.1, point_port: 0, imu_port: 0}\n"
+    )
+    out = tmp_path / "rec.mcap"
+    result = rig("record", "--config", config, "--out", out, "--duration", 0.5)
+    assert result.returncode == 0, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert lines[-2].startswith("warning: lidar (livox@127.0.0.1:") and "sent nothing in" in lines[-2]
+    assert lines[-1] == f"wrote {out}: no messages"
+    assert not json.loads(rig("info", out, "--json").stdout)["truncated"]
 
 
 def test_full_disk_stops_with_a_message_a_valid_file_and_exit_1(tmp_path: Path) -> None:
