@@ -14,40 +14,37 @@ shared data types. Public API:
 - sessions: :func:`calibrate_session` (time offset, then the extrinsic from a rough guess: from a
   chessboard, :class:`BoardGeometry` / :func:`board_geometry`, or targetless);
 - quality pictures: :func:`write_comparison`.
+
+Names are imported on first use (PEP 562), so that ``lts --help``, which imports this package,
+does not load SciPy's statistics and OpenCV's calibration code.
 """
 
-from calib.board_session import BoardGeometry, board_geometry
-from calib.boards import BoardView, CharucoTarget, ChessboardTarget, detect_views
-from calib.intrinsics import IntrinsicsResult, calibrate_intrinsics
-from calib.lidar_map import LidarMap, build_lidar_map
-from calib.overlay import write_comparison
-from calib.photo_consistency import ConsistencyFrame, photo_consistency_extrinsic
-from calib.session_calib import calibrate_session
-from calib.target_based import BoardObservation, board_observations, calibrate_with_board
-from calib.targetless import ExtrinsicPair, ExtrinsicResult, refine_extrinsic
-from calib.time_offset import TimeOffsetResult, estimate_time_offset
+from __future__ import annotations
 
-__all__ = [
-    "BoardGeometry",
-    "BoardObservation",
-    "BoardView",
-    "CharucoTarget",
-    "ChessboardTarget",
-    "ConsistencyFrame",
-    "ExtrinsicPair",
-    "ExtrinsicResult",
-    "IntrinsicsResult",
-    "LidarMap",
-    "TimeOffsetResult",
-    "board_geometry",
-    "board_observations",
-    "build_lidar_map",
-    "calibrate_intrinsics",
-    "calibrate_session",
-    "calibrate_with_board",
-    "detect_views",
-    "estimate_time_offset",
-    "photo_consistency_extrinsic",
-    "refine_extrinsic",
-    "write_comparison",
-]
+from rig.lazy import lazy_exports
+
+_EXPORTS = {
+    "BoardGeometry": "calib.board_session",
+    "board_geometry": "calib.board_session",
+    "BoardView": "calib.boards",
+    "CharucoTarget": "calib.boards",
+    "ChessboardTarget": "calib.boards",
+    "detect_views": "calib.boards",
+    "IntrinsicsResult": "calib.intrinsics",
+    "calibrate_intrinsics": "calib.intrinsics",
+    "LidarMap": "calib.lidar_map",
+    "build_lidar_map": "calib.lidar_map",
+    "write_comparison": "calib.overlay",
+    "ConsistencyFrame": "calib.photo_consistency",
+    "photo_consistency_extrinsic": "calib.photo_consistency",
+    "calibrate_session": "calib.session_calib",
+    "BoardObservation": "calib.target_based",
+    "board_observations": "calib.target_based",
+    "calibrate_with_board": "calib.target_based",
+    "ExtrinsicPair": "calib.targetless",
+    "ExtrinsicResult": "calib.targetless",
+    "refine_extrinsic": "calib.targetless",
+    "TimeOffsetResult": "calib.time_offset",
+    "estimate_time_offset": "calib.time_offset",
+}
+__all__, __getattr__ = lazy_exports(__name__, _EXPORTS)

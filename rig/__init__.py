@@ -1,75 +1,47 @@
 """rig: where data is born — sensor data model, sessions, drivers and the virtual rig.
 
-The data model below imports without any hardware library; drivers import their vendor library
-lazily when opened.
+The data model imports without any hardware library; drivers import their vendor library
+lazily when opened. Names are imported on first use (PEP 562), so that every command line
+(``lts --help`` too) does not load SciPy's spatial module before it needs it.
 """
 
-from rig.calibration import Calibration, load_calibration, save_calibration
-from rig.camera import CameraModel
-from rig.deskew import deskewed_points
-from rig.errors import InputError, OutOfRangeError
-from rig.image_io import read_image
-from rig.messages import Frame, ImuSample, Scan
-from rig.pointcloud_io import PointCloud, read_point_cloud
-from rig.trajectory import Trajectory
-from rig.trajectory_io import (
-    FORMATS as TRAJECTORY_FORMATS,
-)
-from rig.trajectory_io import (
-    detect_format,
-    read_euroc,
-    read_kitti,
-    read_matrix_lines,
-    read_trajectory,
-    read_tum,
-    write_euroc,
-    write_kitti,
-    write_matrix_lines,
-    write_trajectory,
-    write_tum,
-)
-from rig.transforms import (
-    check_rigid,
-    distance_and_angle,
-    from_quaternion,
-    invert,
-    make_transform,
-    to_quaternion,
-    transform_points,
-)
+from __future__ import annotations
 
-__all__ = [
-    "TRAJECTORY_FORMATS",
-    "Calibration",
-    "CameraModel",
-    "Frame",
-    "ImuSample",
-    "InputError",
-    "OutOfRangeError",
-    "PointCloud",
-    "Scan",
-    "Trajectory",
-    "check_rigid",
-    "deskewed_points",
-    "detect_format",
-    "distance_and_angle",
-    "from_quaternion",
-    "invert",
-    "load_calibration",
-    "make_transform",
-    "read_euroc",
-    "read_image",
-    "read_kitti",
-    "read_matrix_lines",
-    "read_point_cloud",
-    "read_trajectory",
-    "read_tum",
-    "save_calibration",
-    "to_quaternion",
-    "transform_points",
-    "write_euroc",
-    "write_kitti",
-    "write_matrix_lines",
-    "write_trajectory",
-    "write_tum",
-]
+from rig.lazy import lazy_exports
+
+_EXPORTS = {
+    "Calibration": "rig.calibration",
+    "load_calibration": "rig.calibration",
+    "save_calibration": "rig.calibration",
+    "CameraModel": "rig.camera",
+    "deskewed_points": "rig.deskew",
+    "InputError": "rig.errors",
+    "OutOfRangeError": "rig.errors",
+    "read_image": "rig.image_io",
+    "Frame": "rig.messages",
+    "ImuSample": "rig.messages",
+    "Scan": "rig.messages",
+    "PointCloud": "rig.pointcloud_io",
+    "read_point_cloud": "rig.pointcloud_io",
+    "Trajectory": "rig.trajectory",
+    "detect_format": "rig.trajectory_io",
+    "read_euroc": "rig.trajectory_io",
+    "read_kitti": "rig.trajectory_io",
+    "read_matrix_lines": "rig.trajectory_io",
+    "read_trajectory": "rig.trajectory_io",
+    "read_tum": "rig.trajectory_io",
+    "write_euroc": "rig.trajectory_io",
+    "write_kitti": "rig.trajectory_io",
+    "write_matrix_lines": "rig.trajectory_io",
+    "write_trajectory": "rig.trajectory_io",
+    "write_tum": "rig.trajectory_io",
+    "TRAJECTORY_FORMATS": "rig.trajectory_io:FORMATS",
+    "check_rigid": "rig.transforms",
+    "distance_and_angle": "rig.transforms",
+    "from_quaternion": "rig.transforms",
+    "invert": "rig.transforms",
+    "make_transform": "rig.transforms",
+    "to_quaternion": "rig.transforms",
+    "transform_points": "rig.transforms",
+}
+__all__, __getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -13,12 +13,14 @@ def lazy_exports(package: str, exports: dict[str, str]) -> tuple[list[str], Call
 
     Args:
         package: the package's ``__name__`` (for the error message).
-        exports: public name → module that defines it.
+        exports: public name → module that defines it, or ``module:name`` where the module names
+            it otherwise.
     """
 
     def module_getattr(name: str) -> Any:
         if name not in exports:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
-        return getattr(importlib.import_module(exports[name]), name)
+        module, _, defined_as = exports[name].partition(":")
+        return getattr(importlib.import_module(module), defined_as or name)
 
     return sorted(exports), module_getattr

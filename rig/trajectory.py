@@ -5,10 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from rig.errors import InputError, OutOfRangeError
-from rig.transforms import make_transform, to_quaternion
+from rig.transforms import make_transform, scipy_rotation, to_quaternion
 
 _UNIT_QUAT_TOL = 1e-3
 #: Tolerated deviation of a pose's rotation block from orthonormality and from det = 1 (files
@@ -91,7 +90,7 @@ class Trajectory:
             )
         if not np.all(np.isfinite(translations)):
             raise InputError("translation holds NaN or Inf", path=source, field="t_xyz")
-        rotations = Rotation.from_quat(quats).as_matrix()
+        rotations = scipy_rotation().from_quat(quats).as_matrix()
         return cls(t_ns, translations, quats, rotations)
 
     @classmethod
@@ -200,6 +199,7 @@ class Trajectory:
             t0 = self.t_ns[i0]
             frac = ((t[blend] - t0) / (self.t_ns[i1] - t0))[:, None]
             out_p[blend] = (1.0 - frac) * self.translations[i0] + frac * self.translations[i1]
+            Rotation = scipy_rotation()
             R0 = Rotation.from_matrix(self.rotations[i0])
             step = (R0.inv() * Rotation.from_matrix(self.rotations[i1])).as_rotvec()
             out_R[blend] = (R0 * Rotation.from_rotvec(frac * step)).as_matrix()

@@ -6,8 +6,9 @@ one transform ``(4, 4)`` or a stack ``(N, 4, 4)``.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from rig.errors import InputError
 
@@ -41,6 +42,14 @@ def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ T[:3, :3].T + T[:3, 3]
 
 
+def scipy_rotation() -> Any:
+    """SciPy's ``Rotation`` class, imported when first needed: scipy.spatial takes ~0.4 s to
+    import, and every command line (``lts --help`` too) imports the modules that use it."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
+
+
 def distance_and_angle(T_a: np.ndarray, T_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """How far apart two poses are: the distance (m) between their positions and the angle (rad)
     between their orientations. ``T_a``, ``T_b``: ``(..., 4, 4)`` (broadcast); returns two arrays of
@@ -48,21 +57,21 @@ def distance_and_angle(T_a: np.ndarray, T_b: np.ndarray) -> tuple[np.ndarray, np
     T_a, T_b = np.broadcast_arrays(np.asarray(T_a, dtype=np.float64), np.asarray(T_b, dtype=np.float64))
     distance = np.linalg.norm(T_a[..., :3, 3] - T_b[..., :3, 3], axis=-1)
     relative = np.swapaxes(T_b[..., :3, :3], -1, -2) @ T_a[..., :3, :3]
-    angle = Rotation.from_matrix(relative.reshape(-1, 3, 3)).magnitude().reshape(distance.shape)
+    angle = scipy_rotation().from_matrix(relative.reshape(-1, 3, 3)).magnitude().reshape(distance.shape)
     return distance, angle
 
 
 def from_quaternion(quat_xyzw: np.ndarray, translation: np.ndarray) -> np.ndarray:
     """Transforms ``(..., 4, 4)`` from unit quaternions ``(..., 4)`` (x, y, z, w) and translations."""
     quat_xyzw = np.asarray(quat_xyzw, dtype=np.float64)
-    rotation = Rotation.from_quat(quat_xyzw.reshape(-1, 4)).as_matrix()
+    rotation = scipy_rotation().from_quat(quat_xyzw.reshape(-1, 4)).as_matrix()
     return make_transform(rotation.reshape(*quat_xyzw.shape[:-1], 3, 3), translation)
 
 
 def to_quaternion(T: np.ndarray) -> np.ndarray:
     """Unit quaternions ``(..., 4)`` (x, y, z, w, with w >= 0) of transforms ``(..., 4, 4)``."""
     T = np.asarray(T, dtype=np.float64)
-    quat = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_quat(canonical=True)
+    quat = scipy_rotation().from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_quat(canonical=True)
     return quat.reshape(*T.shape[:-2], 4)
 
 
