@@ -43,7 +43,7 @@ class SimRig:
     devices: DeviceProcess | None
     oak: FakeOakSource | None
     expected_rates_hz: dict[str, float] = field(default_factory=dict)
-    _sent_at: float | None = None
+    _sent_at: float | None = field(default=None, init=False, repr=False)
 
     def finished(self) -> bool:
         """Whether a scene played once is over: every fake has sent all of it, ``ONE_PASS_GRACE_S``
