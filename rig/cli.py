@@ -188,8 +188,6 @@ def record(
                     rig.stop_devices()
                 summary["sim"] = rig.ground_truth()
                 summary["sim"]["shortfalls"] = rig.shortfalls(summary["written"], summary["duration_s"])
-            for line in summary["sim"]["shortfalls"]:
-                console.print(f"warning: {line}", style="yellow", highlight=False, markup=False)
         else:
             from rig.record import build_sources
             from rig.record_config import load_config
@@ -214,7 +212,7 @@ def record(
         raise SystemExit(1) from exc
     if summary.get("error"):
         console.print(f"[bold red]recording stopped:[/] {summary['error']}", highlight=False)
-    for line in silent_devices(summary):
+    for line in summary.get("sim", {}).get("shortfalls", []) + silent_devices(summary):
         console.print(f"warning: {line}", style="yellow", highlight=False, markup=False)
     if json_out:
         emit_json(summary)
