@@ -104,6 +104,17 @@ def test_a_topic_the_recorder_wrote_too_little_of_is_named() -> None:
     assert "10 Hz" in lines[0]
 
 
+def test_a_scene_played_once_is_judged_by_what_one_pass_holds() -> None:
+    """3 s of scene take longer to record (devices starting, the last messages awaited): its 30
+    sweeps in 3.8 s are all the fakes sent, not 79 % of 10 Hz."""
+    rig_ = SimRig(scene=None, sources=[], devices=None, oak=None)  # type: ignore[arg-type]
+    rig_.expected_rates_hz = {"/lidar/points": 10.0, "/imu/data": 200.0}
+    rig_.pass_counts = {"/lidar/points": 30, "/imu/data": 601}
+    assert rig_.shortfalls({"/lidar/points": 30, "/imu/data": 601}, duration_s=3.8) == []
+    lines = rig_.shortfalls({"/lidar/points": 20, "/imu/data": 601}, duration_s=3.8)
+    assert len(lines) == 1 and lines[0].startswith("/lidar/points: 20 messages")
+
+
 def _start(scene_dir: Path, out: Path) -> subprocess.Popen:
     proc = subprocess.Popen(
         [BIN / "rig", "record", "--sim", scene_dir, "--out", out, "--duration", "60"],
