@@ -513,6 +513,16 @@ def _flat_translations(problem: _Problem, params: _Parameters, y: np.ndarray, he
     return flat
 
 
+def _straight_reason(turn_deg: float, kept: str) -> str:
+    """Why a straight drive (turning at most ``turn_deg``) leaves the extrinsic unsure; ``kept``
+    says what was kept from the guess."""
+    return (
+        f"the rig turned at most {turn_deg:.1f}° between frames (under {MIN_TURN_DEG:.0f}°): driving "
+        "straight, the map looks alike under a roll about the direction of travel or a shift along "
+        f"it, {kept}"
+    )
+
+
 def _straight_travel(frames: Sequence[ConsistencyFrame]) -> tuple[float, np.ndarray | None]:
     """The most the LiDAR turned between any two ``frames`` (degrees) and, when that is under
     :data:`MIN_TURN_DEG`, its unit direction of travel ``(3,)`` in the LiDAR frame (None when it
@@ -542,7 +552,11 @@ def _observable_basis(travel_cam: np.ndarray | None) -> np.ndarray:
 
 
 def photo_consistency_extrinsic(
-    frames: Sequence[ConsistencyFrame], camera: CameraModel, lidar_map: LidarMap, T_init: np.ndarray
+    frames: Sequence[ConsistencyFrame],
+    camera: CameraModel,
+    lidar_map: LidarMap,
+    T_init: np.ndarray,
+    search_straight: bool = True,
 ) -> ExtrinsicResult:
     """Refine ``T_cam_lidar`` ``(4, 4)`` from a rough guess so that the map's points look alike in
     all ``frames``. Never raises on weak data: too few frames or points give the guess back with
@@ -551,7 +565,9 @@ def photo_consistency_extrinsic(
     A rig that drives straight (turning less than :data:`MIN_TURN_DEG`) sees the surfaces beside
     its path, which lie along the direction of travel, shift within themselves under a roll about
     that direction or a move along it; they look alike in every frame either way. Those two are
-    kept from the guess, the other four refined, and the verdict says so."""
+    kept from the guess, the other four refined, and the verdict says so; with
+    ``search_straight`` False the guess is kept whole without a search (its result could not be
+    applied: 15 s of the quick demo's 3 s straight recording)."""
     method = METHOD.format(len(frames))
     problem = _Problem(frames, camera, lidar_map.points)
     every = np.arange(len(frames))
@@ -566,6 +582,16 @@ def photo_consistency_extrinsic(
 
     turn, travel = _straight_travel(frames)
     travel_cam = None if travel is None else T_init[:3, :3] @ travel
+    if travel_cam is not None and not search_straight:
+        reason = _straight_reason(
+            turn, "so the guess was kept whole (a search of the other four axes was skipped)"
+        )
+        extra = {
+            "frames": len(frames),
+            "turn_deg": turn,
+            "kept_from_guess": {"travel_direction_cam": travel_cam.tolist()},
+        }
+        return _result(T_init, T_init, "poorly constrained", [reason], (np.inf,) * 2, extra, n_points, method)
     params = _Parameters(T_init, _observable_basis(travel_cam))
     y = _coarse_to_fine(problem, params, np.zeros(params.basis.shape[1]), BLUR_STAGES)
     y = _out_of_the_valley(problem, params, y)
@@ -578,11 +604,7 @@ def photo_consistency_extrinsic(
     interval_95 = jackknife_interval_95(_jackknife_groups(len(frames)))
     reasons = []
     if travel_cam is not None:
-        reasons.append(
-            f"the rig turned at most {turn:.1f}° between frames (under {MIN_TURN_DEG:.0f}°): driving "
-            "straight, the map looks alike under a roll about the direction of travel or a shift "
-            "along it, so both were kept from the guess"
-        )
+        reasons.append(_straight_reason(turn, "so both were kept from the guess"))
         rot_std = trans_std = np.inf  # nothing is known along the axes kept
     seen = obs.n_points  # the points at least MIN_VIEWS frames see at the result
     if seen < MIN_SEEN_FRACTION * n_points:

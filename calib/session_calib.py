@@ -213,13 +213,15 @@ def session_extrinsic(
     board: BoardGeometry | None = None,
     lidar_map: LidarMap | None = None,
     offset_error_s: float = 0.0,
+    search_straight: bool = True,
 ) -> ExtrinsicResult:
     """The extrinsic step of :func:`calibrate_session`: from the chessboard ``board`` when given,
     else targetless from the rough ``T_init`` ``(4, 4)``: photo-consistency of the recording's
     LiDAR map over many frames (``lidar_map``, built here when not given), or one image + LiDAR
     pair at a time (:func:`extrinsic_pairs`) when the recording has no map. ``offset_error_s``
     (:func:`offset_error`) bounds how far ``time_offset_s`` may be off; a photo-consistency result
-    whose frames it would move too far is ``poorly constrained`` (:func:`timing_reasons`)."""
+    whose frames it would move too far is ``poorly constrained`` (:func:`timing_reasons`).
+    ``search_straight``: as in :func:`~calib.photo_consistency.photo_consistency_extrinsic`."""
     if board is not None:
         return calibrate_board_session(data, camera, board, time_offset_s, T_init)
     lidar_map = lidar_map or session_lidar_map(data)
@@ -227,7 +229,7 @@ def session_extrinsic(
         return refine_extrinsic(extrinsic_pairs(data, time_offset_s, motion), camera, T_init)
     indices = calm_frames(data, motion, CONSISTENCY_FRAMES)
     frames = consistency_frames(data, lidar_map, time_offset_s, indices)
-    result = photo_consistency_extrinsic(frames, camera, lidar_map, T_init)
+    result = photo_consistency_extrinsic(frames, camera, lidar_map, T_init, search_straight)
     frame_t = frame_times(data)[indices]
     if doubts := timing_reasons(frame_t, lidar_map.trajectory, motion, time_offset_s, offset_error_s):
         result.reasons += doubts
@@ -242,13 +244,16 @@ def calibrate_session(
     topics: dict[str, str] | None = None,
     board: BoardGeometry | None = None,
     progress: Callable[[str], None] | None = None,
+    search_straight: bool = True,
 ) -> tuple[Calibration, dict[str, Any]]:
     """Everything a recording supports: camera model, time offset and the extrinsic — from the
     chessboard ``board`` when given, else targetless — starting at a rough ``T_cam_lidar``:
     ``init``'s, else the recording's ``/tf_static`` one, else :func:`motion_guess`. A time offset
     or extrinsic whose verdict is not ``ok`` is reported but not applied (the calibration keeps
-    the rough one). ``progress`` is told each step as it starts. Returns the calibration and a
-    report (``extrinsic_init`` says where the rough extrinsic came from)."""
+    the rough one). ``progress`` is told each step as it starts. ``search_straight`` False skips
+    the targetless search of a straight drive, whose result is never applied (what a
+    reconstruction needs; the search's four axes are a diagnosis for ``lts calibrate``). Returns
+    the calibration and a report (``extrinsic_init`` says where the rough extrinsic came from)."""
     recording = as_recording(path)
     data = load_session(recording, topics)
     camera = data.camera or (init.camera if init is not None else None)
@@ -304,8 +309,9 @@ def calibrate_session(
         trusted = init is not None and time_result.verdict != "ok"
         offset_doubt = 0.0 if trusted else offset_error(time_result, calibration.time_offset_s)
         result = session_extrinsic(
-            data, camera, calibration.time_offset_s, motion, T_init, board, offset_error_s=offset_doubt
-        )
+            data, camera, calibration.time_offset_s, motion, T_init, board,
+            offset_error_s=offset_doubt, search_straight=search_straight,
+        )  # fmt: skip
         report["extrinsic"] = result.to_json()
         # As with the time offset: a result that cannot vouch for itself does not replace the
         # guess (a refinement drifting away from a good start is what users of other tools meet).

@@ -219,6 +219,7 @@ def calibrate(recording: Recording, init: Path | None, out: Path, log: Callable[
         recording,
         load_calibration(init) if init is not None else None,
         progress=lambda step: log(f"  {step}"),
+        search_straight=False,  # only an ok extrinsic is applied, and a straight drive's never is
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     save_calibration(calibration, out)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rig.calibration import Calibration, load_calibration, save_calibration
-from rig.transforms import distance_and_angle
+from rig.transforms import distance_and_angle, make_transform
 
 from .test_targetless import perturb
 
@@ -134,6 +134,27 @@ def test_too_few_frames_are_poorly_constrained(room_map) -> None:
     assert result.verdict == "poorly constrained"
     assert f"only {MIN_FRAMES - 1} frames" in result.reasons[0]
     np.testing.assert_array_equal(result.T_cam_lidar, T)
+
+
+def test_a_straight_drive_can_skip_the_search_it_could_not_apply(room_session: Path, room_map) -> None:
+    """lts reconstruct applies only an ok extrinsic, which a straight drive never gets: its
+    search is skipped, the guess kept whole and the verdict says why."""
+    from calib.photo_consistency import photo_consistency_extrinsic
+    from calib.session_calib import CONSISTENCY_FRAMES, calm_frames, consistency_frames
+
+    data, lidar_map = room_map
+    truth = load_calibration(room_session / "ground_truth" / "calib.yaml")
+    frames = consistency_frames(data, lidar_map, 0.0, calm_frames(data, count=CONSISTENCY_FRAMES))[:8]
+    for k, frame in enumerate(frames):  # 8 cm apart along the first frame's LiDAR x, not turning
+        frame.T_world_lidar = frames[0].T_world_lidar @ make_transform(np.eye(3), (0.08 * k, 0.0, 0.0))
+    result = photo_consistency_extrinsic(
+        frames, data.camera, lidar_map, truth.T_cam_lidar, search_straight=False
+    )
+    assert result.verdict == "poorly constrained"
+    (reason,) = result.reasons
+    assert "turned at most 0.0°" in reason and "the guess was kept whole" in reason
+    np.testing.assert_array_equal(result.T_cam_lidar, truth.T_cam_lidar)
+    assert result.extra["kept_from_guess"]["travel_direction_cam"]
 
 
 def test_lidar_map_needs_two_sweeps() -> None:
