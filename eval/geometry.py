@@ -70,7 +70,7 @@ def sample_surface(mesh: trimesh.Trimesh, count: int = DEFAULT_SAMPLES, seed: in
 def surface_distances(points: np.ndarray, mesh: trimesh.Trimesh) -> np.ndarray:
     """Distance (m) from each point ``(N, 3)`` to the nearest point of ``mesh``'s surface ``(N,)``
     (open3d's closest-point query, float32 precision)."""
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     query = o3d.core.Tensor(np.asarray(points, dtype=np.float32))
     return mesh_raycaster(mesh).compute_distance(query).numpy().astype(np.float64)
@@ -111,7 +111,7 @@ def visible_mask(
     """Boolean ``(N,)``: which surface points ``(N, 3)`` of ``mesh`` at least one camera sees —
     inside its frustum and not hidden behind another part of ``mesh`` (a ray cast from the camera
     reaches within ``tolerance_m`` of the point)."""
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     scene = mesh_raycaster(mesh)
     points = np.asarray(points, dtype=np.float64)

@@ -61,7 +61,7 @@ def lidar_agreement(
 ) -> LidarAgreement | None:
     """Precision, recall and F-score of ``mesh`` against the LiDAR returns of ``keyframes`` (see
     the module docstring); None when those keyframes have no returns."""
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     caster = mesh_raycaster(mesh)
     width = scene.camera.width

@@ -14,7 +14,7 @@ if TYPE_CHECKING:
 
 def mesh_raycaster(mesh: trimesh.Trimesh) -> Any:
     """An open3d ``RaycastingScene`` holding ``mesh``'s triangles."""
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     raycaster = o3d.t.geometry.RaycastingScene()
     raycaster.add_triangles(
@@ -59,7 +59,7 @@ def cast_camera_rays(raycaster: Any, T_world_cam: np.ndarray, rays_cam: np.ndarr
 def cast_world_rays(raycaster: Any, origins: np.ndarray, directions: np.ndarray) -> dict[str, np.ndarray]:
     """Cast rays from world ``origins`` ``(N, 3)`` along unit world ``directions`` ``(N, 3)``;
     returns the same arrays as :func:`cast_camera_rays`."""
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     rays = np.concatenate([origins, directions], axis=1).astype(np.float32)
     hits = raycaster.cast_rays(o3d.core.Tensor(rays))

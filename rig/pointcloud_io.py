@@ -175,7 +175,7 @@ def read_pcd(path: str | Path) -> PointCloud:
     _check_payload(path, encoding, offset, expected, step, values)
     if expected == 0:
         return PointCloud(np.zeros((0, 3)), np.zeros(0, np.float32))
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     try:
         # Open3D's own warnings would only repeat, on stdout, what the InputError below says.

@@ -146,9 +146,9 @@ class _TsdfIntegrator:
     """
 
     def __init__(self, config: MapperConfig, voxel_m: float) -> None:
-        import open3d as o3d
-        import open3d.core as o3c
+        from rig.open3d_lite import o3d
 
+        o3c = o3d.core
         self._o3d, self._o3c = o3d, o3c
         self.config = config
         res = config.face_resolution_px

@@ -65,7 +65,7 @@ def read_registered_points(
 ) -> np.ndarray:
     """Every point ``(N, 3)`` of the registered clouds on ``topic`` (sensor_msgs/PointCloud2, already
     in the map frame), merged into voxels of ``voxel_m``."""
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     require_topic(bag, topic, ("PointCloud2",), option)
 

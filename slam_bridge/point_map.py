@@ -21,7 +21,7 @@ def mesh_from_points(
     Normals are estimated from neighbours and flipped to face the nearest viewpoint; Poisson's
     surface is kept only within ``3 * voxel_m`` of a map point (it closes holes elsewhere).
     """
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     if len(points) < 100:
         raise InputError(f"the point map holds only {len(points)} points", field="points")

@@ -50,7 +50,7 @@ def simplify(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh:
     above :data:`CLUSTER_ABOVE` times ``max_faces``; unchanged if smaller)."""
     if len(mesh.faces) <= max_faces:
         return mesh
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     legacy = o3d.geometry.TriangleMesh(
         o3d.utility.Vector3dVector(np.asarray(mesh.vertices, dtype=np.float64)),
@@ -103,7 +103,7 @@ def _level_points(
     """The points ``(N, 3)`` whose local surface (the plane of their ``neighbours`` nearest) is
     within ``max_tilt_deg`` of level: floor and tops, not walls. A level LiDAR's lowest beam draws
     a ring at one height on every wall round it, which a plane fit alone takes for a floor."""
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     if len(points) < neighbours:
         return points
@@ -155,7 +155,7 @@ def _behind_wall(scene, origin: np.ndarray, points: np.ndarray, up: np.ndarray, 
     """``(N,)`` True where a level ray at the camera's height towards the point above each floor
     point ``(N, 3)`` hits the mesh first: the floor there lies beyond a wall (seen through a hole
     in it), not in the room."""
-    import open3d as o3d
+    from rig.open3d_lite import o3d
 
     above = points + np.outer((origin - points) @ up, up)
     offset = above - origin

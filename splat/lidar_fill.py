@@ -22,11 +22,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import open3d as o3d
 import trimesh
 from scipy.spatial import cKDTree
 
 from rig.mesh_rays import mesh_raycaster
+from rig.open3d_lite import o3d
 from splat.camera_only import explained_radius, facing_triangles
 
 #: A return is explained by the warm start within the larger of this distance (m) and this

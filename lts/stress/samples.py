@@ -7,12 +7,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import open3d as o3d
 import trimesh
 
 from rig.calibration import Calibration, save_calibration
 from rig.camera import CameraModel
 from rig.messages import Frame, ImuSample, Scan
+from rig.open3d_lite import o3d
 from rig.session import SessionWriter
 from rig.trajectory import Trajectory
 from rig.trajectory_io import write_trajectory

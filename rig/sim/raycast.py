@@ -5,10 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import open3d as o3d
 import trimesh
 
 from rig.mesh_rays import mesh_raycaster
+from rig.open3d_lite import o3d
 
 
 @dataclass
