@@ -159,3 +159,19 @@ def test_an_output_path_of_the_wrong_kind_stops_before_any_work(tmp_path: Path) 
         last = result.stderr.strip().splitlines()[-1]
         assert result.returncode == 2 and "Traceback" not in result.stderr, (args, result.stderr)
         assert last.startswith("error: Invalid value for ") and says in last, (args, last)
+
+
+def test_a_bench_budget_out_of_range_stops_before_any_scene_is_simulated(tmp_path: Path) -> None:
+    cases = [
+        (["lts", "bench", "raster", "--triangles", "-5"], "Invalid value for '--triangles'"),
+        (["lts", "bench", "train", "--iterations", "-5", "--out", str(tmp_path)], "--iterations: "),
+        (["lts", "bench", "train", "--triangles", "0", "--out", str(tmp_path)], "--triangles: "),
+        (["lts", "bench", "train", "--profile", "--iterations", "0", "--out", str(tmp_path)], "iterations"),
+    ]
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(_run, [args for args, _ in cases]))
+    for (args, says), result in zip(cases, results, strict=True):
+        last = result.stderr.strip().splitlines()[-1]
+        assert result.returncode == 2 and "Traceback" not in result.stderr, (args, result.stderr)
+        assert last.startswith("error: ") and says in last, (args, last)
+    assert not any(tmp_path.iterdir())  # no scene simulated

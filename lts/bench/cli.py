@@ -81,19 +81,20 @@ def bench_train_command(
 ) -> None:
     """Run time against error: sweep iteration and triangle budgets; the Pareto front (time vs Chamfer).
     With --profile: where a training iteration's time goes."""
-    from lts.bench.training import bench_profile, bench_train, resolve_scene
+    from lts.bench.training import bench_profile, bench_train, profile_config, resolve_scene, sweep_configs
 
     if profile:
+        config = profile_config((iterations or [3000])[0])
         scene_dir = (
             scene if scene is not None else resolve_scene(None, None, out, sim, not full, _log).scene_dir
         )
-        result = bench_profile(scene_dir, out, (iterations or [3000])[0], _log)
+        result = bench_profile(scene_dir, out, config, _log)
         _print_profile(result)
         if json_out:
             emit_json(result)
         return
-    bench = resolve_scene(scene, gt, out, sim, not full, _log)
-    result = bench_train(bench, out, iterations or [300, 600, 1200], triangles, half_resolution, _log)
+    configs = sweep_configs(iterations or [300, 600, 1200], triangles, half_resolution)
+    result = bench_train(resolve_scene(scene, gt, out, sim, not full, _log), out, configs, _log)
     _finish(result, json_out)
 
 
@@ -255,9 +256,9 @@ def _print_calib(result: dict) -> None:
 @bench_app.command("raster")
 def bench_raster(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
-    triangles: list[int] = typer.Option([20_000, 100_000], "--triangles", "-n", help="Scene sizes."),
-    width: int = typer.Option(320, help="Image width in pixels."),
-    height: int = typer.Option(240, help="Image height in pixels."),
+    triangles: list[int] = typer.Option([20_000, 100_000], "--triangles", "-n", min=1, help="Scene sizes."),
+    width: int = typer.Option(320, min=1, help="Image width in pixels."),
+    height: int = typer.Option(240, min=1, help="Image height in pixels."),
     repeats: int = typer.Option(5, min=1, help="Timed runs per row (median; one warm-up first)."),
 ) -> None:
     """Forward+backward time and peak memory of every available rasteriser backend."""

@@ -22,6 +22,7 @@ from lts.bench.figures import pyplot, save_figure
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import load_scene
+from splat.config import TrainConfig
 
 #: What each finished run reports in the log.
 SUMMARY_KEYS = ("train_seconds", "psnr", "fscore", "chamfer_m")
@@ -130,35 +131,41 @@ def _write(out: Path, name: str, result: dict) -> None:
     (out / f"{name}.json").write_text(json.dumps(result, indent=1))
 
 
-def bench_train(
-    bench: BenchScene,
-    out: Path,
-    iterations: list[int],
-    init_triangles: list[int],
-    half_resolution: list[float],
-    log: Callable = print,
-) -> dict[str, Any]:
-    """Sweep iteration budgets × warm-start triangle budgets × the fraction of iterations trained
-    at half resolution (``coarse_until``: 0 full resolution throughout, 1 half throughout) of
-    ``ours``; the Pareto front of training time against Chamfer error (and a plot
-    ``train_pareto.png``)."""
+def sweep_configs(
+    iterations: list[int], init_triangles: list[int], half_resolution: list[float]
+) -> list[TrainConfig]:
+    """The trainings of :func:`bench_train`: iteration budgets × warm-start triangle budgets × the
+    fraction of iterations trained at half resolution (``coarse_until``: 0 full resolution
+    throughout, 1 half throughout) of ``ours``. Raises InputError on a budget a training refuses,
+    before any scene is simulated."""
     from splat.config import make_config
 
-    configs = [
-        make_config(
-            "ours",
-            "default",
-            iterations=n,
-            init_max_triangles=t,
-            max_triangles=max(3 * t, 1000),
-            eval_every=max(n // 4, 1),
-            densify_every=max(n // 6, 1),
-            coarse_until=h,
-        )
-        for n in iterations
-        for t in init_triangles
-        for h in half_resolution
-    ]
+    try:
+        return [
+            make_config(
+                "ours",
+                "default",
+                iterations=n,
+                init_max_triangles=t,
+                max_triangles=max(3 * t, 1000),
+                eval_every=max(n // 4, 1),
+                densify_every=max(n // 6, 1),
+                coarse_until=h,
+            )
+            for n in iterations
+            for t in init_triangles
+            for h in half_resolution
+        ]
+    except InputError as exc:
+        flags = {"iterations": "--iterations", "init_max_triangles": "--triangles"}
+        raise InputError(exc.reason, field=flags.get(exc.field or "", exc.field)) from None
+
+
+def bench_train(
+    bench: BenchScene, out: Path, configs: list[TrainConfig], log: Callable = print
+) -> dict[str, Any]:
+    """Train each of ``configs`` (:func:`sweep_configs`) on the bench scene; the Pareto front of
+    training time against Chamfer error (and a plot ``train_pareto.png``)."""
     rows = _run_all(bench, configs, out, _run_name, log)
     front = pareto_front(rows)
     result = {
@@ -172,13 +179,20 @@ def bench_train(
     return result
 
 
-def bench_profile(scene_dir: Path, out: Path, iterations: int, log: Callable = print) -> dict[str, Any]:
-    """One training of ``ours`` (default preset, ``iterations``) on ``scene_dir`` with every step
-    timed by section (:class:`splat.step_profile.ProfiledTrainer`); writes ``train_profile.json``."""
+def profile_config(iterations: int) -> TrainConfig:
+    """The training :func:`bench_profile` times: ``ours``, default preset, ``iterations`` (raises
+    InputError on a budget a training refuses, before any scene is simulated)."""
     from splat.config import make_config
+
+    return make_config("ours", "default", iterations=iterations)
+
+
+def bench_profile(scene_dir: Path, out: Path, config: TrainConfig, log: Callable = print) -> dict[str, Any]:
+    """One training of ``config`` (:func:`profile_config`) on ``scene_dir`` with every step timed
+    by section (:class:`splat.step_profile.ProfiledTrainer`); writes ``train_profile.json``."""
     from splat.step_profile import ProfiledTrainer
 
-    config = make_config("ours", "default", iterations=iterations)
+    iterations = config.iterations
     run_dir = out / "runs" / f"profile_it{iterations}"
     if run_dir.exists():
         shutil.rmtree(run_dir)
