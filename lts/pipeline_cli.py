@@ -102,7 +102,7 @@ def reconstruct_command(
     preset: str = typer.Option("default", help="Training preset: fast, default or paper."),
     iterations: int | None = typer.Option(None, min=1, help="Override the preset's iteration count."),
     device: str = typer.Option("cpu", help="cpu or cuda for training."),
-    seed: int = typer.Option(0, help="Training seed."),
+    seed: int = typer.Option(0, min=0, help="Training seed."),
     exposure: str = typer.Option(
         "auto",
         "--exposure",
@@ -126,8 +126,9 @@ def reconstruct_command(
     keyframe_interval: float | None = typer.Option(
         None,
         "--keyframe-interval",
+        min=0.0,
         help="Seconds between keyframes (lts prepare's default: 0.5, or down to 0.2 so that a short "
-        "recording gives 40).",
+        "recording gives 40; 0: every frame).",
     ),
     max_size: int = MAX_SIZE_OPTION,
     downscale: int = DOWNSCALE_OPTION,

@@ -54,6 +54,11 @@ class PrepareConfig:
     downscale: int = 1
 
     def __post_init__(self) -> None:
+        if self.keyframe_interval_s is not None and not self.keyframe_interval_s >= 0:
+            raise InputError(
+                f"expected seconds >= 0 (0: every frame), got {self.keyframe_interval_s}",
+                field="keyframe_interval_s",
+            )
         for name, least in (("max_size", 0), ("downscale", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < least:

@@ -29,7 +29,7 @@ class TrainConfig(BaseModel):
     method: Method = "ours"
     preset: Preset = "default"
     iterations: int = Field(3000, ge=1)
-    seed: int = 0
+    seed: int = Field(0, ge=0)
     device: str = "cpu"
 
     # Initialisation.

@@ -60,7 +60,7 @@ def train_command(
         "rougher than the images (another mapper's, an imported trajectory); on good ones it gains "
         "little (docs/training.md).",
     ),
-    seed: int = typer.Option(0, help="Seed of view order, sampling and noise."),
+    seed: int = typer.Option(0, min=0, help="Seed of view order, sampling and noise."),
     device: str = typer.Option("cpu", help="cpu or cuda (the matching rasteriser kernel is used)."),
     resume: bool = typer.Option(
         False, "--resume", help="Continue the run in --out from its last checkpoint."

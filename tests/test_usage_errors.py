@@ -175,3 +175,19 @@ def test_a_bench_budget_out_of_range_stops_before_any_scene_is_simulated(tmp_pat
         assert result.returncode == 2 and "Traceback" not in result.stderr, (args, result.stderr)
         assert last.startswith("error: ") and says in last, (args, last)
     assert not any(tmp_path.iterdir())  # no scene simulated
+
+
+def test_every_seed_option_refuses_a_negative_seed_on_the_command_line() -> None:
+    """NumPy's generators take no negative seed: a usage error, not their traceback."""
+    seeds = [
+        (words, p)
+        for words, command in _leaves()
+        for p in command.params
+        if "--seed" in getattr(p, "opts", [])
+    ]
+    assert len(seeds) >= 5
+    unchecked = [" ".join(words) for words, p in seeds if p.min != 0]
+    assert not unchecked
+    result = _run(["lts", "sim", "unused", "--quick", "--seed", "-1"])
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    assert "Invalid value for '--seed'" in result.stderr.strip().splitlines()[-1]

@@ -11,7 +11,7 @@ from rig.cli_support import console, emit_json
 
 def bench_stability_command(
     profile: str = typer.Option("ci", "--profile", help="ci (a few seconds) or long (minutes)."),
-    seed: int = typer.Option(0, "--seed", help="Seed of the random cases."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the random cases."),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Stress counts per area: cases tried, failures found, non-finite events caught (exit 1 on

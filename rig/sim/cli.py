@@ -26,7 +26,7 @@ def sim(
         None, "--trajectory", help="Camera-to-world poses for --mesh: TUM, KITTI or one 4x4 matrix per line."
     ),
     rate: float = typer.Option(30.0, "--rate", help="Pose rate (Hz) of a trajectory file without times."),
-    seed: int = typer.Option(0, "--seed", help="Seed: the same seed gives a bit-identical run."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed: the same seed gives a bit-identical run."),
     duration: float | None = typer.Option(
         None,
         "--duration",

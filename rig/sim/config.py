@@ -95,6 +95,8 @@ class SimConfig:
         ):
             if not getattr(self, name) > 0:
                 raise InputError(f"must be positive, got {getattr(self, name)}", field=name)
+        if self.seed < 0:
+            raise InputError(f"expected a whole number >= 0, got {self.seed}", field="seed")
         if self.width < 8 or self.height < 8:
             raise InputError(f"image too small: {self.width}x{self.height}", field="width/height")
         if self.image_format not in ("png", "jpeg", "raw"):

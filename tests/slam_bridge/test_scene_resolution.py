@@ -54,6 +54,20 @@ def test_scene_camera_size(size: tuple[int, int], config: PrepareConfig, expecte
         np.testing.assert_array_equal(scene_camera.K, camera.K)
 
 
+@pytest.mark.parametrize(
+    ("options", "field"),
+    [
+        ({"max_size": -1}, "max_size"),
+        ({"downscale": 0}, "downscale"),
+        ({"keyframe_interval_s": -1.0}, "keyframe_interval_s"),
+    ],
+)
+def test_settings_out_of_range_are_refused(options: dict, field: str) -> None:
+    with pytest.raises(InputError) as refused:
+        PrepareConfig(**options)
+    assert refused.value.field == field
+
+
 def test_small_recordings_are_untouched_by_the_default(scenes: tuple[Path, Path], quick_room: Path) -> None:
     """The default --max-size leaves the demo's 320x240 and the quick run's 160x120 as they were:
     the same camera and the same images as at full size."""
