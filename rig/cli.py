@@ -145,13 +145,13 @@ def record(
         None, "--duration", help="Seconds to record (default: until Ctrl-C)."
     ),
     corrupt_rate: float = typer.Option(
-        1e-4, "--corrupt-rate", help="--sim: fraction of serial bytes corrupted."
+        1e-4, "--corrupt-rate", min=0.0, max=1.0, help="--sim: fraction of serial bytes corrupted."
     ),
     unplug_at: float | None = typer.Option(
-        None, "--unplug-at", help="--sim: unplug the serial LiDAR after S s."
+        None, "--unplug-at", min=0.0, help="--sim: unplug the serial LiDAR after S s."
     ),
     unplug_for: float = typer.Option(
-        1.0, "--unplug-for", help="--sim: seconds the serial LiDAR stays unplugged."
+        1.0, "--unplug-for", min=0.0, help="--sim: seconds the serial LiDAR stays unplugged."
     ),
     once: bool = typer.Option(
         False,
@@ -171,6 +171,8 @@ def record(
 
     if (config is None) == (sim is None):
         raise InputError("give exactly one of --config RIG.yaml or --sim SCENE_DIR", field="--config/--sim")
+    if duration is not None and not duration > 0:
+        raise InputError(f"expected seconds > 0, got {duration}", field="--duration")
     if once and sim is None:
         raise InputError("plays a simulated scene once; give the scene with --sim SCENE_DIR", field="--once")
     try:
@@ -312,7 +314,7 @@ def info(
 def replay(
     session: Path = typer.Argument(..., help="Session file (.mcap)."),
     rate: float = typer.Option(
-        1.0, "--rate", help="Speed factor (2 = twice as fast, 0 = as fast as possible)."
+        1.0, "--rate", min=0.0, help="Speed factor (2 = twice as fast, 0 = as fast as possible)."
     ),
     topic: list[str] | None = typer.Option(None, "--topic", help="Only these topics (repeatable)."),
     json_out: bool = typer.Option(False, "--json", help="Print the summary as one JSON object."),

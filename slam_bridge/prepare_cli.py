@@ -72,7 +72,9 @@ def prepare_command(
         metavar="M DEG",
         help="Choose keyframes by motion instead of time: a new one after M metres or DEG degrees.",
     ),
-    test_every: int = typer.Option(8, "--test-every", help="Hold out every n-th keyframe for testing."),
+    test_every: int = typer.Option(
+        8, "--test-every", min=0, help="Hold out every n-th keyframe for testing (0: none)."
+    ),
     image_topic: str | None = IMAGE_TOPIC_OPTION,
     points_topic: str | None = POINTS_TOPIC_OPTION,
     topics: str = TOPICS_OPTION,

@@ -59,6 +59,13 @@ class PrepareConfig:
                 f"expected seconds >= 0 (0: every frame), got {self.keyframe_interval_s}",
                 field="keyframe_interval_s",
             )
+        if self.keyframe_min_motion is not None and not min(self.keyframe_min_motion) >= 0:
+            motion = self.keyframe_min_motion
+            raise InputError(f"expected metres and degrees >= 0, got {motion}", field="keyframe_min_motion")
+        if self.test_every < 0:
+            raise InputError(
+                f"expected a whole number >= 0 (0: none), got {self.test_every}", field="test_every"
+            )
         for name, least in (("max_size", 0), ("downscale", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < least:

@@ -34,7 +34,10 @@ def sim(
         show_default=False,
     ),
     quick: bool = typer.Option(
-        False, "--quick", help="Small run for tests: 3 s, 160x120, moving from the first frame."
+        False,
+        "--quick",
+        help="Small run for tests: 3 s, 160x120, 8000 LiDAR points, moving from the first frame "
+        "(--duration, --width, --height or --lidar-points given keep their value).",
     ),
     carrier: str | None = typer.Option(
         None,
@@ -64,8 +67,12 @@ def sim(
         "or velodyne32 (32 beams -30°..+10°). \\[default: mid360, street: velodyne64]",
         show_default=False,
     ),
-    lidar_points: int = typer.Option(
-        20000, "--lidar-points", help="Points per sweep of the mid360/rosette patterns."
+    lidar_points: int | None = typer.Option(
+        None,
+        "--lidar-points",
+        min=1,
+        help="Points per sweep of the mid360/rosette patterns. \\[default: 20000]",
+        show_default=False,
     ),
     range_noise: float = typer.Option(0.015, "--range-noise", help="LiDAR range noise std (m)."),
     dropout: float = typer.Option(0.02, "--dropout", help="Fraction of LiDAR returns lost."),
@@ -85,7 +92,7 @@ def sim(
         None, "--preview", help="Also write a PNG: a frame with a sweep on it."
     ),
     preview_at: float | None = typer.Option(
-        None, "--preview-at", help="Time (s) of the preview frame (default: mid-run)."
+        None, "--preview-at", min=0.0, help="Time (s) of the preview frame (default: mid-run)."
     ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON summary object on stdout."),
 ) -> None:
@@ -93,10 +100,12 @@ def sim(
     import cv2
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from rig.sim.config import SimConfig
+    from rig.sim.config import QUICK, SimConfig
     from rig.sim.preview import preview_image
     from rig.sim.simulate import prepare, record
 
+    sized = {"duration_s": duration, "width": width, "height": height, "lidar_points": lidar_points}
+    sized = {name: value for name, value in sized.items() if value is not None}  # the ones given
     if config is not None:
         cfg = SimConfig.from_scene_yaml(config)
     else:
@@ -106,25 +115,20 @@ def sim(
             trajectory=None if trajectory is None else str(trajectory),
             trajectory_rate_hz=rate,
             seed=seed,
-            duration_s=duration,
             carrier=carrier,
             fps=fps,
-            width=width,
-            height=height,
             camera_model=camera,
             image_format=image_format,
             image_noise=image_noise,
             exposure_jitter=exposure_jitter,
             lidar=lidar,
-            lidar_points=lidar_points,
             range_noise_m=range_noise,
             dropout=dropout,
             max_range_m=max_range,
             time_offset_s=time_offset,
             traffic=traffic,
+            **({**QUICK, **sized} if quick else sized),
         )
-        if quick:
-            cfg = cfg.quick()
     run = prepare(cfg)  # bad input fails here, before the progress bar appears
     columns = (TextColumn("simulating"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, console=console, transient=json_out) as bar:

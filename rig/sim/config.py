@@ -95,6 +95,9 @@ class SimConfig:
         ):
             if not getattr(self, name) > 0:
                 raise InputError(f"must be positive, got {getattr(self, name)}", field=name)
+        for name in ("image_noise", "exposure_jitter"):
+            if not getattr(self, name) >= 0:
+                raise InputError(f"expected a standard deviation >= 0, got {getattr(self, name)}", field=name)
         if self.seed < 0:
             raise InputError(f"expected a whole number >= 0, got {self.seed}", field="seed")
         if self.width < 8 or self.height < 8:

@@ -85,6 +85,7 @@ def test_record_sim_once_records_one_pass_and_stops(virtual_rig_scene: Path, tmp
             ["--config", "rig.yaml", "--once"],
             "--once: plays a simulated scene once; give the scene with --sim SCENE_DIR",
         ),
+        (["--sim", "scene", "--duration", "-1"], "--duration: expected seconds > 0, got -1.0"),
     ],
 )
 def test_record_without_a_source_or_once_without_sim_is_one_line(

@@ -90,6 +90,43 @@ def test_unknown_preset_gives_one_line_error(tmp_path: Path) -> None:
     assert len(lines) == 1 and "unknown preset 'garage'" in lines[0] and "room, corridor, stairs" in lines[0]
 
 
+@pytest.mark.parametrize(
+    ("option", "says"),
+    [
+        (["--image-noise", "-1"], "image_noise: expected a standard deviation >= 0"),
+        (["--exposure-jitter", "-0.1"], "exposure_jitter: expected a standard deviation >= 0"),
+        (["--lidar-points", "0"], "Invalid value for '--lidar-points'"),
+    ],
+)
+def test_a_negative_noise_or_no_lidar_points_is_one_line_error(
+    tmp_path: Path, option: list[str], says: str
+) -> None:
+    """They were taken as no noise (a negative standard deviation) or overridden by --quick."""
+    result = subprocess.run(
+        [BIN / "lts", "sim", tmp_path / "out", "--quick", *option],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+    assert says in result.stderr.strip().splitlines()[-1]
+    assert not (tmp_path / "out").exists()
+
+
+def test_quick_keeps_the_sizes_given_with_it(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    result = subprocess.run(
+        [BIN / "lts", "sim", out, "--quick", "--width", "200", "--duration", "1"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    calibration = yaml.safe_load((out / "ground_truth" / "calib.yaml").read_text())
+    assert (calibration["camera"]["width"], calibration["camera"]["height"]) == (200, 120)
+    assert SessionReader(out / "session.mcap").topics()[DEFAULT_TOPICS["image"]].count == 31  # 1 s at 30 Hz
+
+
 def test_same_seed_gives_identical_files_scene_yaml_regenerates_other_seed_differs(tmp_path: Path) -> None:
     config = replace(SimConfig(seed=3).quick(), duration_s=1.0)
     for name, cfg in (("a", config), ("b", config), ("c", replace(config, seed=4))):

@@ -60,6 +60,8 @@ def test_scene_camera_size(size: tuple[int, int], config: PrepareConfig, expecte
         ({"max_size": -1}, "max_size"),
         ({"downscale": 0}, "downscale"),
         ({"keyframe_interval_s": -1.0}, "keyframe_interval_s"),
+        ({"keyframe_min_motion": (-1.0, 5.0)}, "keyframe_min_motion"),
+        ({"test_every": -1}, "test_every"),
     ],
 )
 def test_settings_out_of_range_are_refused(options: dict, field: str) -> None:
