@@ -153,12 +153,18 @@ def test_an_output_path_of_the_wrong_kind_stops_before_any_work(tmp_path: Path) 
             f"the folder {missing.parent} does not",
         ),
     ]
-    with ThreadPoolExecutor(4) as pool:
-        results = list(pool.map(_run, [args for args, _ in cases]))
-    for (args, says), result in zip(cases, results, strict=True):
-        last = result.stderr.strip().splitlines()[-1]
-        assert result.returncode == 2 and "Traceback" not in result.stderr, (args, result.stderr)
+    for (args, says), last in zip(cases, _refused([args for args, _ in cases]), strict=True):
         assert last.startswith("error: Invalid value for ") and says in last, (args, last)
+
+
+def _refused(command_lines: list[list[str]]) -> list[str]:
+    """Each command line's last line of error output, once all have exited with status 2 and no
+    traceback (run four at a time)."""
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(_run, command_lines))
+    for args, result in zip(command_lines, results, strict=True):
+        assert result.returncode == 2 and "Traceback" not in result.stderr, (args, result.stderr)
+    return [result.stderr.strip().splitlines()[-1] for result in results]
 
 
 def test_a_bench_budget_out_of_range_stops_before_any_scene_is_simulated(tmp_path: Path) -> None:
@@ -168,11 +174,7 @@ def test_a_bench_budget_out_of_range_stops_before_any_scene_is_simulated(tmp_pat
         (["lts", "bench", "train", "--triangles", "0", "--out", str(tmp_path)], "--triangles: "),
         (["lts", "bench", "train", "--profile", "--iterations", "0", "--out", str(tmp_path)], "iterations"),
     ]
-    with ThreadPoolExecutor(4) as pool:
-        results = list(pool.map(_run, [args for args, _ in cases]))
-    for (args, says), result in zip(cases, results, strict=True):
-        last = result.stderr.strip().splitlines()[-1]
-        assert result.returncode == 2 and "Traceback" not in result.stderr, (args, result.stderr)
+    for (args, says), last in zip(cases, _refused([args for args, _ in cases]), strict=True):
         assert last.startswith("error: ") and says in last, (args, last)
     assert not any(tmp_path.iterdir())  # no scene simulated
 
@@ -188,6 +190,5 @@ def test_every_seed_option_refuses_a_negative_seed_on_the_command_line() -> None
     assert len(seeds) >= 5
     unchecked = [" ".join(words) for words, p in seeds if p.min != 0]
     assert not unchecked
-    result = _run(["lts", "sim", "unused", "--quick", "--seed", "-1"])
-    assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
-    assert "Invalid value for '--seed'" in result.stderr.strip().splitlines()[-1]
+    (last,) = _refused([["lts", "sim", "unused", "--quick", "--seed", "-1"]])
+    assert "Invalid value for '--seed'" in last
