@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -22,7 +22,9 @@ from lts.bench.figures import pyplot, save_figure
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from slam_bridge.scene import load_scene
-from splat.config import TrainConfig
+
+if TYPE_CHECKING:
+    from splat.config import TrainConfig
 
 #: What each finished run reports in the log.
 SUMMARY_KEYS = ("train_seconds", "psnr", "fscore", "chamfer_m")
