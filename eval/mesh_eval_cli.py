@@ -28,7 +28,7 @@ def eval_command(
         help=f"With --mesh: the ground-truth mesh. With RUN: {GT_HELP}.",
     ),
     threshold: float = THRESHOLD_OPTION,
-    samples: int = typer.Option(200_000, "--samples", min=1, help="Points sampled by area on each mesh."),
+    samples: int = typer.Option(200_000, "--samples", help="Points sampled by area on each mesh."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of the surface sampling (--mesh form)."),
     report: bool = typer.Option(
         True, "--report/--no-report", help="RUN form: write report.html in the run folder."
