@@ -16,6 +16,7 @@ reconstruction's, so a rerun reuses them.
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -68,15 +69,20 @@ def simulate_preset(out: Path, preset: str, quick: bool, seed: int = 0) -> None:
     simulate(config.quick() if quick else config, out)
 
 
-def record_through_mock_devices(sim_dir: Path, out: Path) -> None:
+def record_through_mock_devices(sim_dir: Path, out: Path, log: Callable[[str], None] = print) -> None:
     """``rig record --sim``: the robot-side recorder (its own process, in real time) fed by mock
-    devices replaying ``sim_dir``; one pass of the scene, written to ``out`` when complete."""
+    devices replaying ``sim_dir``; one pass of the scene, written to ``out`` when complete (its
+    warnings on stderr as they come, then what ``out`` holds)."""
+    from rig.record import written_line
+
     partial = out.with_suffix(".partial.mcap")
     # One pass (--once), not the jump back to the scene's start that the looping devices make.
     command = [str(Path(sys.executable).with_name("rig")), "record", "--sim", str(sim_dir), "--once"]
-    if subprocess.run([*command, "--out", str(partial)]).returncode != 0:
+    recorded = subprocess.run([*command, "--out", str(partial), "--json"], stdout=subprocess.PIPE, text=True)
+    if recorded.returncode != 0:
         raise RuntimeError(f"rig record failed: {' '.join(command[1:])}")
     partial.replace(out)
+    log(f"  {written_line(out, json.loads(recorded.stdout)['written'])}")
 
 
 def shifted_ground_truth(sim_dir: Path, recording: Path, out: Path) -> int:
@@ -107,7 +113,7 @@ def run_demo(
     key = ["lts sim", str(sim_dir), "--preset", "room", *(["--quick"] if quick else [])]
     stages.run("simulate", key, [], sim_dir / "session.mcap", lambda: simulate_preset(sim_dir, "room", quick))
     key = ["rig record", "--sim", str(sim_dir), "--once", "--out", str(session)]
-    stages.run("record", key, [sim_dir], session, lambda: record_through_mock_devices(sim_dir, session))
+    stages.run("record", key, [sim_dir], session, lambda: record_through_mock_devices(sim_dir, session, log))
 
     def move_ground_truth() -> None:
         shift = shifted_ground_truth(sim_dir, session, gt)

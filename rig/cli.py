@@ -167,7 +167,7 @@ def record(
     status 1.
     """
     from rig.drivers.base import DeviceError
-    from rig.record import Recording, silent_devices
+    from rig.record import Recording, silent_devices, written_line
 
     if (config is None) == (sim is None):
         raise InputError("give exactly one of --config RIG.yaml or --sim SCENE_DIR", field="--config/--sim")
@@ -219,8 +219,7 @@ def record(
     if json_out:
         emit_json(summary)
     else:
-        written = ", ".join(f"{t} {n}" for t, n in sorted(summary["written"].items()))
-        console.print(f"wrote {out}: {written or 'no messages'}")
+        console.print(written_line(out, summary["written"]), highlight=False, markup=False)
     if summary.get("error"):
         raise SystemExit(1)  # the file is valid, but the recording stopped early
 

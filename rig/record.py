@@ -43,6 +43,12 @@ def silent_devices(summary: dict[str, Any]) -> list[str]:
     ]
 
 
+def written_line(path: str | Path, written: dict[str, int]) -> str:
+    """What a recording at ``path`` holds, for the log: each topic and its ``written`` count."""
+    counts = ", ".join(f"{topic} {n}" for topic, n in sorted(written.items()))
+    return f"wrote {path}: {counts or 'no messages'}"
+
+
 def build_sources(config: RigConfig) -> list[Source]:
     """Drivers for the devices of a ``rig.yaml`` (nothing is opened yet)."""
     from rig.drivers.ld06 import Ld06Driver

@@ -31,6 +31,10 @@ def demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo")
     done = _lts("demo", "--quick", "--json", "--out", out, timeout=900)
     assert done.returncode == 0, done.stderr[-2000:]
+    # The recording is named as it ends up, not as the file it was written to until complete.
+    assert f"wrote {out / 'session.mcap'}: " in done.stderr and "partial" not in done.stderr
+    # All of one pass recorded: no topic short of it, no silent device (rig record's warnings).
+    assert not [line for line in done.stderr.splitlines() if line.startswith("warning: ")]
     return out, json.loads(done.stdout.strip().splitlines()[-1])
 
 
