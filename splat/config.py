@@ -6,11 +6,12 @@ resumed run can check that it continues the same experiment.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from rig.data_file import load_data_file
 from rig.errors import InputError
@@ -203,6 +204,13 @@ class TrainConfig(BaseModel):
     checkpoint_every: int = Field(500, ge=1)
     max_rejected_steps: int = Field(20, ge=1, description="consecutive non-finite steps before giving up")
 
+    @field_validator("device")
+    @classmethod
+    def _device(cls, device: str) -> str:
+        if not re.fullmatch(r"cpu|cuda(:\d+)?", device):
+            raise ValueError(f"expected cpu, cuda or cuda:N, got {device!r}")
+        return device
+
     @model_validator(mode="after")
     def _ordered(self) -> TrainConfig:
         if self.floor_rise_end < self.floor_rise_start:
@@ -290,7 +298,8 @@ def validated(values: dict[str, Any], path: Path | None = None) -> TrainConfig:
     except ValidationError as exc:
         first = exc.errors()[0]
         field = ".".join(str(p) for p in first["loc"]) or None
-        raise InputError(first["msg"], path=path, field=field) from None
+        # A validator's own ValueError comes back as "Value error, <its message>".
+        raise InputError(first["msg"].removeprefix("Value error, "), path=path, field=field) from None
 
 
 def load_config(path: str | Path) -> TrainConfig:

@@ -465,6 +465,8 @@ def test_lts_train_cli_summary_and_clear_errors(scene_dir, tmp_path, lts_cli):
     assert "coarse_until: 0.0" in (tmp_path / "full" / "config.yaml").read_text()
     code, _, err = lts_cli(*args[:3], tmp_path / "y", "--half-resolution", 2)
     assert code == 2 and "--half-resolution" in err
+    code, _, err = lts_cli(*args[:3], tmp_path / "z", "--device", "gpu")  # was torch's RuntimeError
+    assert code == 2 and "device: expected cpu, cuda or cuda:N, got 'gpu'" in err
 
 
 def test_learning_rates_100x_too_high_never_leave_a_non_finite_model(scene_dir, tmp_path):
