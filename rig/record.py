@@ -120,6 +120,8 @@ class Recording:
         self.errors: dict[str, str] = {}
         self.recorder: SessionRecorder | None = None
         self.started = 0.0
+        #: The drivers whose camera model is written (once, with their first frame).
+        self._camera_written: set[str] = set()
 
     def device_status(self) -> dict[str, Any]:
         """``{"devices": {name: {health counters, "device_id", "clock"}}}``."""
@@ -138,7 +140,6 @@ class Recording:
     def _read_loop(self, source: Source, stop: threading.Event) -> None:
         driver, recorder = source.driver, self.recorder
         assert recorder is not None
-        camera_written = source.camera is None or "camera_info" not in source.topics
         while not stop.is_set() and recorder.recording:
             try:
                 messages = driver.read(0.1)
@@ -146,16 +147,25 @@ class Recording:
                 self.errors[driver.name] = f"{type(exc).__name__}: {exc}"
                 return
             for m in messages:
-                topic = source.topics.get(_role(m))
-                if topic is None:
-                    continue
-                if not camera_written and isinstance(m, Frame):
-                    assert source.camera is not None
-                    recorder.put_camera_info(
-                        source.camera, m.t_host, m.t_device, source.topics["camera_info"], driver.name
-                    )
-                    camera_written = True
-                recorder.put(m, topic, driver.name)
+                self._put(source, m)
+
+    def _put(self, source: Source, m: Frame | Scan | ImuSample) -> None:
+        """Queue ``m`` on its topic of ``source`` (none: dropped), after the source's camera model
+        with its first frame, read or drained (a camera whose frames all came after the stop, as
+        in a recording shorter than its clock fit, had no camera_info)."""
+        assert self.recorder is not None
+        topic = source.topics.get(_role(m))
+        if topic is None:
+            return
+        name = source.driver.name
+        wanted = source.camera is not None and "camera_info" in source.topics
+        if wanted and isinstance(m, Frame) and name not in self._camera_written:
+            assert source.camera is not None
+            self.recorder.put_camera_info(
+                source.camera, m.t_host, m.t_device, source.topics["camera_info"], name
+            )
+            self._camera_written.add(name)
+        self.recorder.put(m, topic, name)
 
     def run(
         self,
@@ -209,9 +219,7 @@ class Recording:
                 t.join(5)
             for s in self.sources:
                 for m in s.driver.drain():
-                    topic = s.topics.get(_role(m))
-                    if topic is not None:
-                        self.recorder.put(m, topic, s.driver.name)
+                    self._put(s, m)
             elapsed = time.monotonic() - self.started
             self.recorder.close(self.device_status())
             return {**self.summary(), "duration_s": elapsed}

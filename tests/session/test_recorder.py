@@ -95,3 +95,33 @@ def test_truncated_file_recover_and_replay(tmp_path: Path) -> None:
     timed = replay(path, lambda m: None, rate=10.0)  # 2 s of data at 10x: about 0.2 s
     assert timed["messages"] == 400
     assert 0.19 <= timed["wall_s"] < 0.6 and timed["span_s"] == pytest.approx(1.995)
+
+
+def test_a_camera_whose_frames_all_come_at_the_drain_still_gets_its_camera_info(tmp_path: Path) -> None:
+    """A camera that holds its frames back until its clock fit holds (rig.clock.HostStamper)
+    releases them all at the end of a short recording: the camera model is written with the
+    first of them as with a frame read during the recording (rig record --duration 0.5 wrote 17
+    frames and no camera_info)."""
+    from rig import CameraModel, Frame
+    from rig.drivers.base import Driver
+    from rig.record import Recording, Source
+
+    class HeldBack(Driver):
+        def open(self) -> None: ...
+        def close(self) -> None: ...
+
+        def read(self, timeout_s: float = 0.1) -> list:
+            time.sleep(timeout_s)
+            return []
+
+        def drain(self) -> list:
+            image = np.zeros((4, 6, 3), np.uint8)
+            return [Frame(image, 1_000_000_000 + i * 33_000_000, i, "camera") for i in range(3)]
+
+    K = np.array([[5.0, 0.0, 3.0], [0.0, 5.0, 2.0], [0.0, 0.0, 1.0]])
+    camera = CameraModel("pinhole", 6, 4, K, np.zeros(5))
+    topics = {"image": "/camera/image", "camera_info": "/camera/camera_info"}
+    out = tmp_path / "held.mcap"
+    summary = Recording([Source(HeldBack("camera"), topics, camera)], out).run(0.3, threading.Event())
+    assert summary["written"] == {"/camera/camera_info": 1, "/camera/image": 3}
+    assert SessionReader(out).camera_model("/camera/camera_info").size == (6, 4)
