@@ -100,7 +100,7 @@ def sim(
     import cv2
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from rig.sim.config import QUICK, SimConfig
+    from rig.sim.config import SimConfig
     from rig.sim.preview import preview_image
     from rig.sim.simulate import prepare, record
 
@@ -127,8 +127,10 @@ def sim(
             max_range_m=max_range,
             time_offset_s=time_offset,
             traffic=traffic,
-            **({**QUICK, **sized} if quick else sized),
+            **sized,
         )
+        if quick:
+            cfg = cfg.quick(**sized)
     run = prepare(cfg)  # bad input fails here, before the progress bar appears
     columns = (TextColumn("simulating"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, console=console, transient=json_out) as bar:

@@ -111,9 +111,10 @@ class SimConfig:
         if abs(self.time_offset_s) > 1.0:
             raise InputError(f"expected at most 1 s, got {self.time_offset_s}", field="time_offset_s")
 
-    def quick(self) -> SimConfig:
-        """This configuration with the :data:`QUICK` settings."""
-        return replace(self, **QUICK)
+    def quick(self, **kept: Any) -> SimConfig:
+        """This configuration with the :data:`QUICK` settings, but for the fields in ``kept``
+        (field → value, e.g. a width given beside ``lts sim --quick``)."""
+        return replace(self, **{**QUICK, **kept})
 
     def camera(self) -> CameraModel:
         """The simulated camera: ~65° (pinhole) or ~130° (fisheye) horizontal field of view."""
