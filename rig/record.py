@@ -120,8 +120,10 @@ class Recording:
         self.errors: dict[str, str] = {}
         self.recorder: SessionRecorder | None = None
         self.started = 0.0
-        #: The drivers whose camera model is written (once, with their first frame).
-        self._camera_written: set[str] = set()
+        #: The drivers whose camera model is written (once, with their first frame) or not wanted.
+        self._camera_written = {
+            s.driver.name for s in sources if s.camera is None or "camera_info" not in s.topics
+        }
 
     def device_status(self) -> dict[str, Any]:
         """``{"devices": {name: {health counters, "device_id", "clock"}}}``."""
@@ -158,8 +160,7 @@ class Recording:
         if topic is None:
             return
         name = source.driver.name
-        wanted = source.camera is not None and "camera_info" in source.topics
-        if wanted and isinstance(m, Frame) and name not in self._camera_written:
+        if isinstance(m, Frame) and name not in self._camera_written:
             assert source.camera is not None
             self.recorder.put_camera_info(
                 source.camera, m.t_host, m.t_device, source.topics["camera_info"], name
