@@ -41,7 +41,7 @@ from lts.stages import StageRecord, StageRunner
 from rig.errors import InputError
 from rig.recording_options import CALIB_FROM_RECORDING, span_key
 from rig.session import Recording, TimeSpan, open_recording, parse_topic_map
-from slam_bridge.prepare_config import DEFAULT_MAX_SIZE
+from slam_bridge.prepare_config import DEFAULT_MAX_SIZE, DEFAULT_MAX_TRAVEL_M
 from slam_bridge.scene import FORMAT_VERSION, Scene, load_scene
 
 if TYPE_CHECKING:
@@ -68,6 +68,7 @@ class ReconstructOptions:
     device: str = "cpu"
     seed: int = 0
     keyframe_interval_s: float | None = None
+    keyframe_max_travel_m: float = DEFAULT_MAX_TRAVEL_M
     max_size: int = DEFAULT_MAX_SIZE
     downscale: int = 1
     topics: str = "auto"
@@ -259,7 +260,13 @@ def prepare_config(o: ReconstructOptions) -> PrepareConfig:
     init = train_config(o)
     interval = {} if o.keyframe_interval_s is None else {"keyframe_interval_s": o.keyframe_interval_s}
     sparse = init.init == "delaunay-sfm" or (init.init == "mesh" and init.camera_only_seeds)
-    return PrepareConfig(sparse_points=sparse, max_size=o.max_size, downscale=o.downscale, **interval)
+    return PrepareConfig(
+        keyframe_max_travel_m=o.keyframe_max_travel_m,
+        sparse_points=sparse,
+        max_size=o.max_size,
+        downscale=o.downscale,
+        **interval,
+    )
 
 
 def prepare_key(config: PrepareConfig) -> list[str]:
@@ -268,6 +275,7 @@ def prepare_key(config: PrepareConfig) -> list[str]:
     interval = config.keyframe_interval_s
     key = [f"scene format {FORMAT_VERSION}"]
     key += [] if interval is None else ["--keyframe-interval", str(interval)]
+    key += ["--keyframe-distance", str(config.keyframe_max_travel_m)]
     key += ["--max-size", str(config.max_size), "--downscale", str(config.downscale)]
     return key + (["--sparse-points"] if config.sparse_points else [])
 
@@ -281,7 +289,7 @@ def build_scene(
 
     shutil.rmtree(out, ignore_errors=True)
     built = build(session, load_calibration(calib), slam, out, config)
-    log(f"  {len(built.keyframes)} keyframes, one per {built.interval_s:.3g} s")
+    log(f"  {len(built.keyframes)} keyframes, {built.spacing}")
     if built.matching_summary() is not None:
         log(f"  {built.matching_summary()}")
 

@@ -18,7 +18,7 @@ from rig.recording_options import (
     TOPICS_OPTION,
     time_span,
 )
-from slam_bridge.prepare_cli import DOWNSCALE_OPTION, MAX_SIZE_OPTION
+from slam_bridge.prepare_cli import DOWNSCALE_OPTION, KEYFRAME_DISTANCE_OPTION, MAX_SIZE_OPTION
 
 if TYPE_CHECKING:
     from lts.pipeline import ReconstructResult
@@ -130,6 +130,7 @@ def reconstruct_command(
         help="Seconds between keyframes (lts prepare's default: 0.5, or down to 0.2 so that a short "
         "recording gives 40; 0: every frame).",
     ),
+    keyframe_distance: float = KEYFRAME_DISTANCE_OPTION,
     max_size: int = MAX_SIZE_OPTION,
     downscale: int = DOWNSCALE_OPTION,
     topics: str = TOPICS_OPTION,
@@ -151,8 +152,9 @@ def reconstruct_command(
 
     options = ReconstructOptions(
         session, out, calib, init, slam, gt, method, preset, iterations, device, seed, keyframe_interval,
-        max_size=max_size, downscale=downscale, topics=topics, span=time_span(start, duration), camera=camera,
-        exposure=exposure, learn_poses=learn_poses, blocks=blocks, ray_address=ray_address,
+        keyframe_distance, max_size=max_size, downscale=downscale, topics=topics,
+        span=time_span(start, duration), camera=camera, exposure=exposure, learn_poses=learn_poses,
+        blocks=blocks, ray_address=ray_address,
     )  # fmt: skip
     result, _ = _run_stages(lambda: (reconstruct(options, _log), []))
     summary = _summary(result)

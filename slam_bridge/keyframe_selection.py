@@ -72,22 +72,40 @@ def select_keyframes(
     calibration: Calibration,
     interval_s: float,
     min_motion: tuple[float, float] | None = None,
+    max_travel_m: float = 0.0,
 ) -> np.ndarray:
     """Indices of camera frames to keep, only where the trajectory covers them: one per
-    ``interval_s``, or — with ``min_motion = (metres, degrees)`` — the next frame whose camera has
-    moved or turned at least that much since the last keyframe."""
+    ``interval_s``, and sooner where the camera has moved ``max_travel_m`` (> 0) since the last
+    keyframe; or — with ``min_motion = (metres, degrees)`` — the next frame whose camera has moved
+    or turned at least that much since the last keyframe."""
     covered = covered_frames(frame_t_ns, trajectory, calibration)
-    poses = camera_poses(trajectory, calibration, frame_t_ns[covered]) if min_motion else None
+    by_motion = min_motion is not None
+    poses = camera_poses(trajectory, calibration, frame_t_ns[covered]) if by_motion or max_travel_m else None
     chosen = [0]
     for j in range(1, len(covered)):
-        if poses is None:
-            keep = (frame_t_ns[covered[j]] - frame_t_ns[covered[chosen[-1]]]) * 1e-9 >= interval_s - 1e-6
-        else:
-            moved, angle = distance_and_angle(poses[j], poses[chosen[-1]])
+        moved, angle = (0.0, 0.0) if poses is None else distance_and_angle(poses[j], poses[chosen[-1]])
+        if by_motion:
             keep = moved >= min_motion[0] or np.degrees(angle) >= min_motion[1]
+        else:
+            elapsed_s = (frame_t_ns[covered[j]] - frame_t_ns[covered[chosen[-1]]]) * 1e-9
+            keep = elapsed_s >= interval_s - 1e-6 or 0 < max_travel_m <= moved + 1e-6
         if keep:
             chosen.append(j)
     return covered[np.asarray(chosen)]
+
+
+def describe_spacing(
+    t_ns: np.ndarray, interval_s: float, min_motion: tuple[float, float] | None, max_travel_m: float
+) -> str:
+    """How the keyframes at stamps ``(K,)`` were spaced, for a log line: "one per 0.5 s or 1 m
+    travelled (12 sooner by distance)"."""
+    if min_motion is not None:
+        return f"one per {min_motion[0]:g} m or {min_motion[1]:g} deg of motion"
+    line = f"one per {interval_s:.3g} s"
+    if not max_travel_m:
+        return line
+    sooner = int(np.sum(np.diff(np.asarray(t_ns, dtype=np.int64)) * 1e-9 < interval_s - 1e-6))
+    return f"{line} or {max_travel_m:g} m travelled ({sooner} sooner by distance)"
 
 
 def make_keyframes(t_ns: np.ndarray, poses: np.ndarray, test_every: int) -> list[Keyframe]:

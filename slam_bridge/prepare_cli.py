@@ -20,7 +20,7 @@ from rig.recording_options import (
     calibration_option,
     open_from_options,
 )
-from slam_bridge.prepare_config import DEFAULT_MAX_SIZE
+from slam_bridge.prepare_config import DEFAULT_MAX_SIZE, DEFAULT_MAX_TRAVEL_M
 
 if TYPE_CHECKING:
     from slam_bridge.pose_refinement import RefinementReport
@@ -50,6 +50,16 @@ DOWNSCALE_OPTION = typer.Option(
     metavar="N",
     help="Divide the recording's image size by N (then --max-size applies).",
 )
+#: ``--keyframe-distance``, shared with ``lts reconstruct``.
+KEYFRAME_DISTANCE_OPTION = typer.Option(
+    DEFAULT_MAX_TRAVEL_M,
+    "--keyframe-distance",
+    min=0.0,
+    metavar="M",
+    help="Also take a keyframe wherever the camera has moved M metres since the last one, before the "
+    "interval is up (a car at 10 m/s would leave 5 m between keyframes 0.5 s apart; a walking robot never "
+    "reaches it). 0: by time alone.",
+)
 
 
 def prepare_command(
@@ -72,6 +82,7 @@ def prepare_command(
         metavar="M DEG",
         help="Choose keyframes by motion instead of time: a new one after M metres or DEG degrees.",
     ),
+    max_travel: float = KEYFRAME_DISTANCE_OPTION,
     test_every: int = typer.Option(
         8, "--test-every", min=0, help="Hold out every n-th keyframe for testing (0: none)."
     ),
@@ -117,9 +128,10 @@ def prepare_command(
     recording = open_from_options(session, topics, start, duration, camera)
     calibration = calibration_option(calib, recording, image=image_topic, points=points_topic)
     config = PrepareConfig(
-        interval,
-        keyframe_motion,
-        test_every,
+        keyframe_interval_s=interval,
+        keyframe_min_motion=keyframe_motion,
+        keyframe_max_travel_m=max_travel,
+        test_every=test_every,
         image_topic=image_topic,
         points_topic=points_topic,
         normals_dir=normals,
@@ -158,7 +170,7 @@ def prepare_command(
         return
     console.print(
         f"wrote {out}: {summary['keyframes']} keyframes ({summary['train']} train, {summary['test']} test), "
-        f"one per {built.interval_s:.3g} s"
+        f"{built.spacing}"
     )
 
 

@@ -39,6 +39,7 @@ from slam_bridge.keyframe_normals import write_keyframe_normals
 from slam_bridge.keyframe_selection import (
     camera_poses,
     default_interval,
+    describe_spacing,
     frame_stamps,
     make_keyframes,
     select_keyframes,
@@ -65,6 +66,7 @@ class SceneBuild:
     matching: MatchingReport | None
     triangulation_s: float | None
     interval_s: float
+    spacing: str
 
     def matching_summary(self) -> str | None:
         """One line on matching and triangulation (None when neither ran)."""
@@ -98,9 +100,12 @@ def build_scene(
     frame_t = frame_stamps(reader, topics.image)
     if config.keyframe_interval_s is None:
         config = replace(config, keyframe_interval_s=default_interval(frame_t, trajectory, calibration))
-    chosen = select_keyframes(
-        frame_t, trajectory, calibration, config.keyframe_interval_s, config.keyframe_min_motion
+    interval, motion, travel = (
+        config.keyframe_interval_s,
+        config.keyframe_min_motion,
+        config.keyframe_max_travel_m,
     )
+    chosen = select_keyframes(frame_t, trajectory, calibration, interval, motion, travel)
     keyframes = make_keyframes(
         frame_t[chosen], camera_poses(trajectory, calibration, frame_t[chosen]), config.test_every
     )
@@ -145,7 +150,8 @@ def build_scene(
         "triangulation_s": triangulation_s,
     }
     write_scene_index(out, target, keyframes, config, source, sparse_points=sparse_file)
-    return SceneBuild(keyframes, refinement, matching, triangulation_s, config.keyframe_interval_s)
+    spacing = describe_spacing(frame_t[chosen], interval, motion, travel)
+    return SceneBuild(keyframes, refinement, matching, triangulation_s, interval, spacing)
 
 
 def _counter(progress: Progress | None, total: int) -> Callable[[], None]:

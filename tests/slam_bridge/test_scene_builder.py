@@ -373,3 +373,47 @@ def test_default_keyframe_interval_gives_short_recordings_40_keyframes(span_s, f
     interval = default_interval(t, everywhere, SimpleNamespace(time_offset_s=0.0))
     assert interval == pytest.approx(interval_s, abs=1e-6)
     assert len(t[:: round(interval * fps)]) == count
+
+
+def driving(speed_mps: float, fps: float, span_s: float = 4.0) -> tuple[np.ndarray, object]:
+    """Frame stamps ``(N,)`` and a straight trajectory at ``speed_mps`` along x covering them."""
+    from rig.trajectory import Trajectory
+
+    t = (np.arange(0, span_s + 1e-9, 1 / fps) * 1e9).astype(np.int64)
+    poses = np.repeat(np.eye(4)[None], 2, axis=0)
+    poses[1, 0, 3] = speed_mps * (span_s + 1)
+    return t, Trajectory.from_poses(np.array([0, int((span_s + 1) * 1e9)]), poses)
+
+
+@pytest.mark.parametrize(
+    ("speed_mps", "fps", "max_travel_m", "steps_m"),
+    [
+        (10.0, 10, 1.0, {1.0}),  # a car at speed: every 10 Hz frame, 1 m apart
+        (10.0, 10, 0.0, {5.0}),  # by time alone: 0.5 s, 5 m apart
+        (3.0, 30, 1.0, {1.0}),  # the virtual street: 1 m instead of 1.5 m
+        (0.45, 30, 1.0, {0.225}),  # a walking robot never reaches it: one per 0.5 s
+    ],
+)
+def test_keyframes_by_time_and_distance_travelled(speed_mps, fps, max_travel_m, steps_m) -> None:
+    from slam_bridge.keyframe_selection import describe_spacing, select_keyframes
+
+    t, trajectory = driving(speed_mps, fps)
+    calibration = Calibration(
+        CameraModel("pinhole", 32, 24, [[30, 0, 15.5], [0, 30, 11.5], [0, 0, 1]], []), np.eye(4), 0.0
+    )
+    chosen = select_keyframes(t, trajectory, calibration, 0.5, max_travel_m=max_travel_m)
+    steps = np.diff(speed_mps * t[chosen] * 1e-9)
+    assert set(np.round(steps, 3)) == steps_m
+    spacing = describe_spacing(t[chosen], 0.5, None, max_travel_m)
+    sooner = len(steps) if steps_m != {speed_mps * 0.5} else 0
+    assert spacing == "one per 0.5 s" + (
+        f" or 1 m travelled ({sooner} sooner by distance)" if max_travel_m else ""
+    )
+
+
+def test_a_scene_made_before_the_distance_rule_reads_as_keyframes_by_time(tmp_path: Path) -> None:
+    data = PrepareConfig().to_json()
+    del data["keyframe_max_travel_m"]
+    assert PrepareConfig.from_json(data, tmp_path / "scene.json").keyframe_max_travel_m == 0.0
+    with pytest.raises(InputError, match="keyframe_max_travel_m: expected metres >= 0"):
+        PrepareConfig(keyframe_max_travel_m=-1.0)
