@@ -49,6 +49,14 @@ def eval_command(
         help="RUN form: check holes and fall-through at the seams of this block run's partition.json "
         "(default: the run's own, when it was trained with --blocks).",
     ),
+    test_views: Path | None = typer.Option(
+        None,
+        "--test-views",
+        metavar="SCENE",
+        help="RUN form: score the test views on the held-out views of another scene of the same recording "
+        "and map (a scene, training run or lts reconstruct folder) that RUN does not train on, so that runs "
+        "with different keyframes compare on the same views. Prints the metrics; writes nothing in RUN.",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
 ) -> None:
     """Evaluate a training run (photometry, geometry, leaned-view holes, physics, report), or compare
@@ -62,9 +70,21 @@ def eval_command(
         from eval.run_eval_cli import evaluate_run_command
 
         evaluate_run_command(
-            run_dir, gt, threshold, samples, report, physics, device, lpips_weights, json_out, seams
+            run_dir,
+            gt,
+            threshold,
+            samples,
+            report,
+            physics,
+            device,
+            lpips_weights,
+            json_out,
+            seams,
+            test_views,
         )
         return
+    if test_views is not None:
+        raise InputError("scores the views of a run: give RUN", field="--test-views")
     if mesh is None:
         raise InputError("give a run folder (lts eval RUN_DIR) or a mesh (lts eval --mesh REC --gt GT)")
     if gt is None:

@@ -47,6 +47,7 @@ from eval.mover_ghosts import swept_area_fraction
 from eval.moving_pixels import mover_names, moving_pixel_masks
 from eval.photometric import color_aligned, lpips, psnr, ssim
 from eval.seams import seam_drops, seam_holes
+from eval.shared_views import held_out_views
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from rig.mesh_rays import mesh_raycaster
@@ -475,21 +476,25 @@ def evaluate_run(
     scene: Scene | None = None,
     lpips_weights: str | Path | None = None,
     seams: str | Path | None = None,
+    test_views: Scene | None = None,
 ) -> RunEvaluation:
     """Evaluate a finished run (see the module docstring); ``gt`` is a virtual-rig ground-truth
     folder or its parent, or a mesh file in the scene's frame (``None``: no geometric or physics
     metrics); ``scene``: the run's scene when it is already loaded (its files are then not read
     again); ``lpips_weights``: the LPIPS weights file (``None``: where
     :func:`~eval.lpips_weights.load_lpips` looks); ``seams``: a block run's ``partition.json`` whose
-    seams are checked (:mod:`eval.seams`; ``None``: the run's own, when it was trained in blocks)."""
+    seams are checked (:mod:`eval.seams`; ``None``: the run's own, when it was trained in blocks);
+    ``test_views``: another scene of the same recording and map whose held-out views the test-view
+    metrics score instead of the run's own (:func:`eval.shared_views.held_out_views`)."""
     run_dir = Path(run_dir)
     if threshold_m <= 0:
         raise InputError(f"threshold must be positive, got {threshold_m}", field="threshold")
     scene = scene if scene is not None else load_scene(layout.scene_of(run_dir))
     model = load_model(layout.model_path(run_dir), device)
-    tests = scene.split("test")
+    tests = scene.split("test") if test_views is None else held_out_views(scene, test_views)
     if not tests:
         raise InputError("the scene has no test keyframes to evaluate on", path=scene.root, field="split")
+    views_from = scene if test_views is None else test_views
     summary = _read_summary(run_dir)
     metrics: dict = dict.fromkeys(CONTRACT_FIELDS)
     metrics["threshold_m"] = float(threshold_m)
@@ -510,9 +515,14 @@ def evaluate_run(
         moving = moving_pixel_masks(movers, scene.camera, np.array([k.t_ns for k in tests]))
     log(f"rendering {len(tests)} test views")
     color_maps, metrics["test_color_maps"] = layout.read_color_maps(run_dir)
-    if not color_maps:
+    if test_views is not None and color_maps:
+        color_maps, metrics["test_color_maps"] = None, None
+        reasons["test_color_maps"] = (
+            "the run's colour maps are for its own test views: --test-views scores through none"
+        )
+    elif not color_maps:
         reasons["test_color_maps"] = "the run learnt no colour maps (lts train --exposure)"
-    views = _photometric(model, scene, tests, lpips_network, metrics, reasons, moving, color_maps)
+    views = _photometric(model, views_from, tests, lpips_network, metrics, reasons, moving, color_maps)
 
     metrics.update(dict.fromkeys(GT_FIELDS))
     if truth is not None:
@@ -528,7 +538,7 @@ def evaluate_run(
     leaned = []
     if reference is not None:
         log(f"rendering {4 * len(tests)} leaned views (holes against the {metrics['hole_reference']})")
-        leaned = _holes(model, scene, tests, views, reference, metrics)
+        leaned = _holes(model, views_from, tests, views, reference, metrics)
 
     points = drops = None
     mesh_path = run_dir / MESH_FILE
@@ -549,7 +559,7 @@ def evaluate_run(
             metrics["mover_swept_area_fraction"] = swept_area_fraction(
                 reconstructed, truth.T_gt_world, movers, samples
             )
-    _lidar(mesh_path, scene, tests, metrics, reasons, log)
+    _lidar(mesh_path, views_from, tests, metrics, reasons, log)
     if truth is not None and physics:
         log("dropping physics probes on the collision mesh and the ground truth")
         drops = _physics(run_dir, scene, truth, metrics, reasons)
@@ -567,6 +577,7 @@ def evaluate_run(
         method=summary.get("method"),
         run_dir=str(run_dir),
         scene_dir=str(scene.root),
+        test_views_dir=str(views_from.root),
         gt_dir=str(gt) if gt is not None else None,
         reasons=reasons,
     )

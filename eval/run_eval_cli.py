@@ -1,13 +1,19 @@
-"""``lts eval RUN [--gt GT] [--lpips-weights PATH]``: evaluate a training run (``RUN`` and ``GT`` as
-:mod:`eval.run_inputs` resolves them), write ``eval.json`` and ``report.html`` in the run folder
-(mounted through :func:`eval.mesh_eval_cli.eval_command`)."""
+"""``lts eval RUN [--gt GT] [--lpips-weights PATH] [--test-views SCENE]``: evaluate a training run
+(``RUN`` and ``GT`` as :mod:`eval.run_inputs` resolves them), write ``eval.json`` and ``report.html``
+in the run folder (mounted through :func:`eval.mesh_eval_cli.eval_command`); on another scene's
+held-out views (:mod:`eval.shared_views`) print the metrics and write nothing."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rig.cli_support import console, emit_json
 from rig.native_output import native_output_to_stderr
+
+if TYPE_CHECKING:
+    from eval.run_eval import RunEvaluation
 
 
 def _text(value, unit: str = "", scale: float = 1.0, digits: int = 3) -> str:
@@ -25,11 +31,14 @@ def evaluate_run_command(
     lpips_weights: Path | None,
     json_out: bool,
     seams: Path | None = None,
+    test_views: Path | None = None,
 ) -> None:
-    from eval.run_eval import evaluate_run, write_eval_json
+    from eval.run_eval import evaluate_run
     from eval.run_inputs import resolve_run_inputs
+    from eval.shared_views import views_scene
 
     inputs = resolve_run_inputs(run_dir, gt)
+    other = None if test_views is None else views_scene(test_views)
 
     def log(message: str) -> None:
         console.print(f"[dim]{message}[/]", highlight=False)
@@ -37,15 +46,9 @@ def evaluate_run_command(
     with native_output_to_stderr():
         evaluation = evaluate_run(
             inputs.run_dir, inputs.gt, threshold, samples, device, physics, log, lpips_weights=lpips_weights,
-            seams=seams,
+            seams=seams, test_views=other,
         )  # fmt: skip
-        eval_path = write_eval_json(evaluation)
-        report_path = None
-        if report:
-            from eval.report import write_report
-
-            log("writing the report")
-            report_path = write_report(evaluation)
+        written = [] if other is not None else _write(evaluation, report, log)  # the run's own views only
     m = evaluation.metrics
     if json_out:
         emit_json(m)
@@ -53,8 +56,9 @@ def evaluate_run_command(
     psnr, ssim, lpips = _text(m["psnr"], " dB", digits=2), _text(m["ssim"]), _text(m["lpips"])
     depth = _text(m["depth_error_median_m"], " cm", 100, 2)
     holes = _text(m["hole_fraction_leaned"], " %", 100, 2)
+    views = "test views" if other is None else f"held-out views of {other.root}"
     lines = [
-        f"test views ({m['n_test_views']}): PSNR {psnr} (each view's colours fitted to its image: "
+        f"{views} ({m['n_test_views']}): PSNR {psnr} (each view's colours fitted to its image: "
         f"{_text(m['psnr_color_aligned'], ' dB', digits=2)}; with hard triangle edges: "
         f"{_text(m['psnr_hard_edges'], ' dB', digits=2)}), SSIM {ssim}, LPIPS {lpips}; "
         f"LiDAR depth error median {depth}",
@@ -94,4 +98,18 @@ def evaluate_run_command(
         by_reason.setdefault(reason, []).append(key)
     for reason, keys in by_reason.items():
         console.print(f"  [dim]null: {', '.join(keys)}: {reason}[/]", highlight=False)
-    console.print(f"wrote {eval_path}" + (f" and {report_path}" if report_path else ""), highlight=False)
+    if written:
+        console.print(f"wrote {' and '.join(map(str, written))}", highlight=False)
+
+
+def _write(evaluation: RunEvaluation, report: bool, log: Callable[[str], None]) -> list[Path]:
+    """Write ``eval.json`` and, with ``report``, ``report.html`` in the run folder; their paths."""
+    from eval.run_eval import write_eval_json
+
+    written = [write_eval_json(evaluation)]
+    if report:
+        from eval.report import write_report
+
+        log("writing the report")
+        written.append(write_report(evaluation))
+    return written

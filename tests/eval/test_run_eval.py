@@ -15,6 +15,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "splat"))
 from training_scene import corner_mesh, write_training_scene
 
 from eval.run_eval import CONTRACT_FIELDS, GT_FIELDS, evaluate_run
+from rig.errors import InputError
 from rig.trajectory import Trajectory
 from rig.trajectory_io import write_tum
 from slam_bridge.scene import load_scene
@@ -137,3 +138,84 @@ def test_model_renders_are_what_the_trainer_reports(tiny_run, with_gt) -> None:
     """The evaluation's PSNR uses the trainer's convention (clamped render, black background)."""
     summary = json.loads((tiny_run[0] / "summary.json").read_text())
     assert with_gt.metrics["psnr"] == pytest.approx(summary["test"]["test_psnr"], abs=0.05)
+
+
+def other_scene(tiny_run, root: Path, change) -> Path:
+    """A copy of the tiny run's scene folder whose ``scene.json`` ``change(data)`` edited."""
+    scene_dir = load_scene(run_dir_scene(tiny_run[0])).root
+    copy = root / "other_scene"
+    shutil.copytree(scene_dir, copy)
+    data = json.loads((copy / "scene.json").read_text())
+    change(data)
+    (copy / "scene.json").write_text(json.dumps(data))
+    return copy
+
+
+def run_dir_scene(run_dir: Path) -> Path:
+    from splat import run_dir as layout
+
+    return layout.scene_of(run_dir)
+
+
+def test_scored_on_a_copy_of_its_own_scene_a_run_scores_the_same(tiny_run, with_gt, tmp_path) -> None:
+    from eval.shared_views import views_scene
+
+    copy = views_scene(other_scene(tiny_run, tmp_path, lambda data: None))
+    shared = evaluate_run(tiny_run[0], tiny_run[1].parent, samples=50_000, physics=False, test_views=copy)
+    for name in ("psnr", "ssim", "psnr_color_aligned", "lidar_fscore", "hole_fraction_leaned"):
+        assert shared.metrics[name] == pytest.approx(with_gt.metrics[name], abs=1e-6), name
+    assert shared.metrics["test_views_dir"] == str(copy.root) != shared.metrics["scene_dir"]
+
+
+def _swap_splits(data: dict) -> None:
+    for keyframe in data["keyframes"]:
+        keyframe["split"] = "train" if keyframe["split"] == "test" else "test"
+
+
+def _move_poses(data: dict) -> None:
+    for keyframe in data["keyframes"]:
+        keyframe["T_world_cam"][0][3] += 0.05
+
+
+def _scale_camera(data: dict) -> None:
+    data["camera"]["K"][0][0] *= 1.1
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (_swap_splits, "every one of its test views is a training view of the run"),
+        (_move_poses, "lie up to 0.050 m from the run's: not the same map"),
+        (_scale_camera, "is not the run's"),
+    ],
+)
+def test_another_scenes_views_that_do_not_fit_the_run_are_refused(
+    tiny_run, tmp_path, change, message
+) -> None:
+    from eval.shared_views import held_out_views, views_scene
+
+    with pytest.raises(InputError, match=message) as refused:
+        held_out_views(
+            load_scene(run_dir_scene(tiny_run[0])), views_scene(other_scene(tiny_run, tmp_path, change))
+        )
+    assert "other_scene" in str(refused.value)
+
+
+def test_lts_eval_test_views_prints_and_writes_nothing_in_the_run(tiny_run, tmp_path) -> None:
+    run_dir = tiny_run[0]
+    before = {p.name: p.stat().st_mtime_ns for p in run_dir.iterdir()}
+    copy = other_scene(tiny_run, tmp_path, lambda data: None)
+    result = subprocess.run(
+        [LTS, "eval", run_dir, "--test-views", copy, "--no-physics", "--json"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["test_views_dir"] == str(copy)
+    assert {p.name: p.stat().st_mtime_ns for p in run_dir.iterdir()} == before
+    for args, message in (
+        (["--test-views", tmp_path / "nowhere"], "no such scene or run folder"),
+        (["--test-views", tmp_path], "expected a scene folder"),
+    ):
+        refused = subprocess.run([LTS, "eval", run_dir, *args], capture_output=True, text=True, timeout=120)
+        assert refused.returncode == 2 and message in refused.stderr, refused.stderr
+        assert "Traceback" not in refused.stderr
