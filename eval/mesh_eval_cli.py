@@ -70,18 +70,9 @@ def eval_command(
         from eval.run_eval_cli import evaluate_run_command
 
         evaluate_run_command(
-            run_dir,
-            gt,
-            threshold,
-            samples,
-            report,
-            physics,
-            device,
-            lpips_weights,
-            json_out,
-            seams,
+            run_dir, gt, threshold, samples, report, physics, device, lpips_weights, json_out, seams,
             test_views,
-        )
+        )  # fmt: skip
         return
     if test_views is not None:
         raise InputError("scores the views of a run: give RUN", field="--test-views")
