@@ -24,20 +24,22 @@ SAME_MAP_M = 0.01
 def views_scene(path: str | Path) -> Scene:
     """The scene ``path`` names: a scene folder (``lts prepare --out``), a training run (its scene)
     or an ``lts reconstruct`` folder (its ``scene/``)."""
-    from eval.run_inputs import RECONSTRUCT_RUN, resolve_run_dir
+    from eval.run_inputs import resolve_run_dir
 
     path = Path(path)
     if (path / SCENE_FILE).is_file():
         return load_scene(path)
     if not path.is_dir():
         raise InputError("no such scene or run folder", path=path, field="--test-views")
-    if not (path / RECONSTRUCT_RUN).is_dir() and not layout.model_path(path).is_file():
+    try:
+        run_dir = resolve_run_dir(path)
+    except InputError:
         raise InputError(
             f"expected a scene folder ({SCENE_FILE}), a training run or an lts reconstruct folder",
             path=path,
             field="--test-views",
-        )
-    return load_scene(layout.scene_of(resolve_run_dir(path)))
+        ) from None
+    return load_scene(layout.scene_of(run_dir))
 
 
 def held_out_views(scene: Scene, other: Scene) -> list[Keyframe]:
