@@ -48,6 +48,7 @@ from eval.moving_pixels import mover_names, moving_pixel_masks
 from eval.photometric import color_aligned, lpips, psnr, ssim
 from eval.seams import seam_drops, seam_holes
 from eval.shared_views import held_out_views
+from eval.sky_pixels import sky_masks
 from rig.errors import InputError
 from rig.mesh_io import load_mesh
 from rig.mesh_rays import mesh_raycaster
@@ -216,14 +217,18 @@ def _photometric(
     reasons: dict,
     moving: list[np.ndarray] | None = None,
     color_maps: dict[str, np.ndarray] | None = None,
+    sky: list[np.ndarray] | None = None,
 ) -> list[ViewImages]:
     """PSNR, SSIM, LPIPS and depth errors of the test views into ``metrics``; also PSNR over the
     pixels above the LiDAR's reach, of the render with hard triangle edges (:data:`HARD_EDGE_SIGMA`)
     and, with ``moving`` (one ``(H, W)`` mask per test view of the pixels that show a moving
-    object), over the static pixels. A test view with a colour matrix ``(3, 3)`` in ``color_maps``
-    (by name: its exposure, :mod:`splat.exposure`) is scored through it."""
+    object), over the static pixels; with ``sky`` (one ``(H, W)`` mask per test view of the pixels
+    the ground truth leaves empty, :mod:`eval.sky_pixels`), over the static sky pixels and the
+    share of them that triangles cover. A test view with a colour matrix ``(3, 3)`` in
+    ``color_maps`` (by name: its exposure, :mod:`splat.exposure`) is scored through it."""
     views, psnrs, ssims, lpips_values, depth_errors = [], [], [], [], []
     above_psnrs, static_psnrs, moving_fractions, aligned_psnrs, hard_psnrs = [], [], [], [], []
+    sky_psnrs, sky_pixels, sky_covered = [], 0, 0
     hard_edged = replace(model, sigma=HARD_EDGE_SIGMA)
     for i, keyframe in enumerate(tests):
         lidar = scene.depth(keyframe)
@@ -249,6 +254,10 @@ def _photometric(
         if moving is not None:
             moving_fractions.append(float(moving[i].mean()))
             static_psnrs.append(psnr(render, target, mask=~moving[i]))
+        if sky is not None and (scored := sky[i] if moving is None else sky[i] & ~moving[i]).any():
+            sky_psnrs.append(psnr(render, target, mask=scored))
+            sky_pixels += int(scored.sum())
+            sky_covered += int((scored & (alpha >= ALPHA_SURFACE)).sum())
         views.append(
             ViewImages(
                 keyframe.name, render, target, alpha, psnr(render, target),
@@ -273,6 +282,11 @@ def _photometric(
     metrics["moving_pixel_fraction"] = float(np.mean(moving_fractions)) if moving is not None else None
     if moving is None:
         reasons["psnr_static"] = "needs --gt with moving objects (a virtual-rig folder with movers/)"
+    metrics["psnr_sky"] = float(np.mean(sky_psnrs)) if sky_psnrs else None
+    metrics["sky_covered_fraction"] = sky_covered / sky_pixels if sky_pixels else None
+    if not sky_psnrs:
+        why = "needs --gt" if sky is None else "the ground truth has a surface behind every test pixel"
+        reasons["psnr_sky"] = reasons["sky_covered_fraction"] = why
     metrics["lpips"] = float(np.mean(lpips_values)) if lpips_values else None
     if lpips_network is None:
         reasons["lpips"] = HOW_TO_GET
@@ -522,7 +536,8 @@ def evaluate_run(
         )
     elif not color_maps:
         reasons["test_color_maps"] = "the run learnt no colour maps (lts train --exposure)"
-    views = _photometric(model, views_from, tests, lpips_network, metrics, reasons, moving, color_maps)
+    sky = None if truth is None else sky_masks(truth.mesh, scene.camera, [k.T_world_cam for k in tests])
+    views = _photometric(model, views_from, tests, lpips_network, metrics, reasons, moving, color_maps, sky)
 
     metrics.update(dict.fromkeys(GT_FIELDS))
     if truth is not None:

@@ -80,6 +80,11 @@ def evaluate_run_command(
             f"({_text(m['moving_pixel_fraction'], ' %', 100, 1)} of the pixels show one); mesh area "
             f"inside their swept volumes {_text(m['mover_swept_area_fraction'], ' %', 100, 2)}"
         )
+    if m["psnr_sky"] is not None:
+        lines.append(
+            f"sky (the pixels the ground truth leaves empty): PSNR {_text(m['psnr_sky'], ' dB', digits=2)}, "
+            f"{_text(m['sky_covered_fraction'], ' %', 100, 1)} of them covered by triangles"
+        )
     if m["seam_views"] is not None:
         at_seams, elsewhere = (
             _text(m["seam_hole_fraction"], " %", 100, 2),

@@ -84,6 +84,8 @@ def test_every_contract_field_and_sensible_numbers_against_the_ground_truth(tiny
     assert 0 <= metrics["hole_fraction_leaned"] < 0.1
     assert (metrics["lpips"] is None) == ("lpips" in metrics["reasons"])
     assert (metrics["psnr_above_lidar"] is None) == ("psnr_above_lidar" in metrics["reasons"])
+    for name in ("psnr_sky", "sky_covered_fraction"):
+        assert (metrics[name] is None) == (name in metrics["reasons"])
     assert metrics["psnr_static"] is None and "movers/" in metrics["reasons"]["psnr_static"]
     assert len(with_gt.views) == 1 and len(with_gt.leaned) == 4
     if metrics["physics_probes"] is None:
@@ -96,10 +98,24 @@ def test_every_contract_field_and_sensible_numbers_against_the_ground_truth(tiny
 def test_without_ground_truth_the_geometric_metrics_are_null_with_a_reason(tiny_run) -> None:
     metrics = evaluate_run(tiny_run[0], None, physics=False).metrics
     assert set(CONTRACT_FIELDS) <= set(metrics)
-    for name in GT_FIELDS:
+    for name in (*GT_FIELDS, "psnr_sky", "sky_covered_fraction"):
         assert metrics[name] is None and "--gt" in metrics["reasons"][name]
     assert metrics["psnr"] is not None and metrics["n_triangles"] > 0
     assert metrics["hole_reference"] == "slam_mesh" and metrics["hole_fraction_leaned"] is not None
+
+
+def test_triangles_where_the_ground_truth_has_no_surface_count_as_covering_the_sky(
+    tiny_run, with_gt, tmp_path
+) -> None:
+    # The truth without its wall: the wall the run reconstructed now stands where the truth is empty.
+    corner = corner_mesh(24)
+    floor = corner.submesh([np.flatnonzero(corner.triangles_center[:, 2] < 1e-6)], append=True)
+    floor.export(tmp_path / "floor.ply")
+    metrics = evaluate_run(tiny_run[0], tmp_path / "floor.ply", physics=False, samples=5_000).metrics
+    assert metrics["sky_covered_fraction"] > 0.5
+    assert 0 < metrics["psnr_sky"] < 60
+    # With the wall in the truth, only what the run grew past the wall's ends covers its sky.
+    assert with_gt.metrics["sky_covered_fraction"] < metrics["sky_covered_fraction"] - 0.3
 
 
 def test_a_model_without_its_wall_has_holes_in_the_leaned_views(tiny_run, tmp_path) -> None:
