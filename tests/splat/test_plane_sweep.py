@@ -15,6 +15,7 @@ from splat.plane_sweep import (
     keyframe_sweeps,
     sweep_depth,
     swept_cells,
+    without_fattening,
 )
 from splat.upright_planes import UprightPlanes
 
@@ -66,6 +67,20 @@ def test_a_textured_wall_gets_its_depth_and_a_blank_one_none() -> None:
 
     blank = [(np.full_like(g, 0.6), T) for g, (_, T) in zip(greys, [reference, *sources], strict=True)]
     assert not np.isfinite(sweep_depth(CAMERA, blank[0], blank[1:], CAMERA.height)).any()
+
+
+def test_depths_a_window_may_have_taken_from_a_nearer_surface_beside_them_are_left_out() -> None:
+    # A roof 20 m away under the sky (rows 0-9 without a depth), a building 40 m away beside it
+    # (columns from 50 on), and a gentle slope (0.5 % a pixel) across the roof.
+    depth = np.full((30, 80), 20.0) * 1.005 ** np.arange(80)[None, :]
+    depth[:, 50:] = 40.0
+    depth[:10] = np.nan
+    kept = np.isfinite(without_fattening(depth))
+    assert not kept[:13].any()  # the sky and the three rows under it
+    # within three pixels of the jump (between columns 49 and 50), as a 7-pixel window reaches
+    assert not kept[13:, 47:53].any() and not kept[20, 46] and not kept[20, 53]
+    assert kept[20, 45] and kept[20, 54] and kept[20:, :40].all() and kept[20:, 57:].all()
+    assert np.array_equal(without_fattening(depth)[kept], depth[kept])
 
 
 def test_cells_lie_on_the_wall_and_none_where_the_lidar_explains_it_or_a_pixel_moves() -> None:
