@@ -1,18 +1,19 @@
 """Dense camera-only geometry above the LiDAR's reach: plane-sweep stereo between keyframes.
 
-The upward extension (:mod:`splat.upward_extension`) continues upright surfaces the LiDAR
-touched; what it never touched (an overpass's face, tree crowns, the upper floors of a building
-set back behind a lower one) had only the sparse points' seeds and was otherwise left to the
-background, which then painted structure from every viewpoint alike. Here each reference
-keyframe's pixels above its topmost LiDAR returns get a depth by sweeping fronto-parallel planes
-(uniform in inverse depth) and scoring each against the nearest keyframes before and after it
-(far enough apart to see parallax) by zero-mean normalised cross-correlation over a window:
-insensitive to the images' gains. A depth is kept only where the window has texture, the
-correlation is high, its peak is clearly unique along the sweep and inside it (sky, far
-structure beyond the sweep and pixels near the epipole of a forward drive have no such peak),
-and another reference keyframe finds the same surface. Each kept pixel of a coarse grid becomes a
-square cell facing its keyframe, as wide as the grid step there; cells the LiDAR explains or sees
-through are dropped, as are cells on pixels of moving objects.
+The upward extension (:mod:`splat.upward_extension`) continues upright surfaces the LiDAR touched;
+what it never touched (an overpass's face, tree crowns, the upper floors of a building set back
+behind a lower one) had only the sparse points' seeds and was otherwise left to the background,
+which then painted structure from every viewpoint alike. Here each reference keyframe's pixels
+above its topmost LiDAR returns get a depth by sweeping fronto-parallel planes (uniform in inverse
+depth) and scoring each against the nearest keyframes before and after it (far enough apart to see
+parallax) by zero-mean normalised cross-correlation over a window: insensitive to the images'
+gains. A depth is kept only where the window has texture, the correlation is high, its peak is
+clearly unique along the sweep and inside it (sky, far structure beyond the sweep and pixels near
+the epipole of a forward drive have no such peak), it does not lie where a window may have taken a
+nearer surface's depth (beside a depth edge, under the sky) and another reference keyframe finds
+the same surface. Each kept pixel of a coarse grid becomes a square cell facing its keyframe, as
+wide as the grid step there; cells the LiDAR explains or sees through are dropped, as are cells on
+pixels of moving objects.
 
 Written by hand: OpenCV's stereo matchers need rectified pairs, which a forward-moving camera
 (epipole inside the image) cannot give, and the multi-view stereo of COLMAP needs CUDA.
@@ -195,11 +196,11 @@ def keyframe_sweeps(
     moving: list[np.ndarray | None],
 ) -> list[np.ndarray | None]:
     """Each keyframe's :func:`sweep_depth` ``(H, W)`` (m; NaN where not confident, below the LiDAR's
-    reach and on moving pixels), or None where there is nothing above the LiDAR's reach or no
-    other keyframe :data:`MIN_BASELINE_M` away: keyframes with RGB ``images`` ``(H, W, 3)`` uint8 at
-    ``poses_world_cam`` ``(K, 4, 4)``, LiDAR depth images ``depths`` ``(H, W)`` (0 = no return)
-    and masks of moving pixels ``moving``. ``camera`` must be an undistorted pinhole (a scene's
-    camera is); for any other, every entry is None."""
+    reach, on moving pixels and where :func:`without_fattening` doubts it), or None where there is
+    nothing above the LiDAR's reach or no other keyframe :data:`MIN_BASELINE_M` away: keyframes
+    with RGB ``images`` ``(H, W, 3)`` uint8 at ``poses_world_cam`` ``(K, 4, 4)``, LiDAR depth
+    images ``depths`` ``(H, W)`` (0 = no return) and masks of moving pixels ``moving``. ``camera``
+    must be an undistorted pinhole (a scene's camera is); for any other, every entry is None."""
     if camera.model != "pinhole" or np.any(camera.dist):
         return [None] * len(images)
     greys = [_grey(image) for image in images]
