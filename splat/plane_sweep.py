@@ -54,7 +54,7 @@ CELL_PX = 8
 AGREE_FRACTION = 0.05
 #: A correlation window that straddles a depth edge takes the nearer, textured side's depth
 #: (foreground fattening): depths within this many pixels of a jump between neighbours, or this
-#: many rows below a pixel without a depth (the sky over a roofline), are left out.
+#: many rows below a blank pixel without a depth (the sky over a roofline), are left out.
 FATTENING_PX = WINDOW_PX // 2
 
 
@@ -218,17 +218,18 @@ def keyframe_sweeps(
         others = [(greys[i], poses_world_cam[i]) for i in sources]
         swept = np.full(depth.shape, np.nan, dtype=np.float32)
         swept[:rows] = sweep_depth(camera, (greys[reference], T_world_cam), others, rows)
-        sweeps.append(without_fattening(np.where(above, swept, np.nan)))
+        sweeps.append(without_fattening(np.where(above, swept, np.nan), greys[reference]))
     return sweeps
 
 
-def without_fattening(depth: np.ndarray) -> np.ndarray:
-    """``depth`` ``(H, W)`` (m, NaN where none) without the depths a window may have taken from a
-    nearer surface beside them: within :data:`FATTENING_PX` pixels of a jump of more than
-    :data:`AGREE_FRACTION` (in log depth) between two neighbours that both have one, or with a
-    pixel without a depth up to :data:`FATTENING_PX` rows above them. On the 20 s street a third
-    of the swept depths within 4 px of a depth edge or the sky lay over 15 % too near, and 3 % of
-    all of them on the sky."""
+def without_fattening(depth: np.ndarray, grey: np.ndarray) -> np.ndarray:
+    """``depth`` ``(H, W)`` (m, NaN where none) of the grey image ``grey`` ``(H, W)`` in [0, 1] without
+    the depths a window may have taken from a nearer surface beside them: within
+    :data:`FATTENING_PX` pixels of a jump of more than :data:`AGREE_FRACTION` (in log depth) between
+    two neighbours that both have one, or up to :data:`FATTENING_PX` rows under a pixel without a
+    depth whose window has no texture (the sky: the band above a roofline whose windows reach the
+    roof takes its depth). On the 20 s street a quarter of the swept depths within 4 px of a depth
+    edge or the sky lay over 15 % too near, and 3 % of all of them on the sky."""
     known = np.isfinite(depth)
     log_depth = np.log(np.where(known, depth, 1.0))
     jump = np.zeros_like(known)
@@ -240,8 +241,10 @@ def without_fattening(depth: np.ndarray) -> np.ndarray:
         jump[tuple(first)] |= both
         jump[tuple(second)] |= both
     doubtful = binary_dilation(jump, iterations=FATTENING_PX)
+    mean = _box(grey)
+    blank = ~known & (_box(grey * grey) - mean * mean < MIN_TEXTURE**2)
     for rows in range(1, FATTENING_PX + 1):
-        doubtful[rows:] |= ~known[:-rows]
+        doubtful[rows:] |= blank[:-rows]
     return np.where(doubtful, np.nan, depth)
 
 

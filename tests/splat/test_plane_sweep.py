@@ -70,17 +70,23 @@ def test_a_textured_wall_gets_its_depth_and_a_blank_one_none() -> None:
 
 
 def test_depths_a_window_may_have_taken_from_a_nearer_surface_beside_them_are_left_out() -> None:
-    # A roof 20 m away under the sky (rows 0-9 without a depth), a building 40 m away beside it
-    # (columns from 50 on), and a gentle slope (0.5 % a pixel) across the roof.
+    # A blank sky over rows 0-9 of the image and a textured roof 20 m away under it; the roof's
+    # depth has spread 3 rows up into the sky (rows 7-9), where the windows reach the roof. A
+    # building 40 m away beside the roof from column 50 on; a gentle slope (0.5 % a pixel).
+    grey = _texture()[:30, :80].copy()
+    grey[:10] = 0.6
     depth = np.full((30, 80), 20.0) * 1.005 ** np.arange(80)[None, :]
     depth[:, 50:] = 40.0
-    depth[:10] = np.nan
-    kept = np.isfinite(without_fattening(depth))
-    assert not kept[:13].any()  # the sky and the three rows under it
+    depth[:7] = np.nan
+    kept = np.isfinite(without_fattening(depth, grey))
+    assert not kept[:10].any() and kept[10:13, :40].all()  # the band over the roof, not the roof
     # within three pixels of the jump (between columns 49 and 50), as a 7-pixel window reaches
     assert not kept[13:, 47:53].any() and not kept[20, 46] and not kept[20, 53]
     assert kept[20, 45] and kept[20, 54] and kept[20:, :40].all() and kept[20:, 57:].all()
-    assert np.array_equal(without_fattening(depth)[kept], depth[kept])
+    assert np.array_equal(without_fattening(depth, grey)[kept], depth[kept])
+    # A textured patch without a depth (too little correlation) is no sky: the rows under it stay.
+    depth[15:18, 20:30] = np.nan
+    assert np.isfinite(without_fattening(depth, grey)[18:21, 20:30]).all()
 
 
 def test_cells_lie_on_the_wall_and_none_where_the_lidar_explains_it_or_a_pixel_moves() -> None:
