@@ -95,6 +95,12 @@ def _box(image: np.ndarray) -> np.ndarray:
     return cv2.blur(image, (WINDOW_PX, WINDOW_PX), borderType=cv2.BORDER_REFLECT)
 
 
+def _window_stats(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mean and variance ``(H, W)`` of ``image`` over each pixel's :data:`WINDOW_PX` window."""
+    mean = _box(image)
+    return mean, np.maximum(_box(image * image) - mean * mean, 0.0)
+
+
 def _ncc(band: np.ndarray, mean: np.ndarray, variance: np.ndarray, warped: np.ndarray) -> np.ndarray:
     """Zero-mean normalised cross-correlation ``(R, W)`` over :data:`WINDOW_PX` windows of ``band``
     (with its window ``mean`` and ``variance``) and a source image ``warped`` onto it (NaN outside
@@ -130,8 +136,7 @@ def sweep_depth(
     grey, T_world_ref = reference
     width = camera.width
     band = grey[:rows]
-    mean = _box(band)
-    variance = np.maximum(_box(band * band) - mean * mean, 0.0)
+    mean, variance = _window_stats(band)
     textured = variance >= MIN_TEXTURE**2
     K = camera.K
     inverse = np.linspace(1.0 / SWEEP_FAR_M, 1.0 / SWEEP_NEAR_M, SWEEP_PLANES)
@@ -241,8 +246,7 @@ def without_fattening(depth: np.ndarray, grey: np.ndarray) -> np.ndarray:
         jump[tuple(first)] |= both
         jump[tuple(second)] |= both
     doubtful = binary_dilation(jump, iterations=FATTENING_PX)
-    mean = _box(grey)
-    blank = ~known & (_box(grey * grey) - mean * mean < MIN_TEXTURE**2)
+    blank = ~known & (_window_stats(grey)[1] < MIN_TEXTURE**2)
     for rows in range(1, FATTENING_PX + 1):
         doubtful[rows:] |= blank[:-rows]
     return np.where(doubtful, np.nan, depth)
