@@ -35,6 +35,7 @@ from splat.exposure import (
     log_gain,
     neighbour_gains,
 )
+from splat.far_vertex_steps import FarVertexSteps
 from splat.finite import all_finite
 from splat.floor_cells import PlaneGrid, on_floor
 from splat.held_out_views import evaluate_views, load_held_out_views, mark_background, write_renders
@@ -189,6 +190,10 @@ class Trainer:
         device = self.config.device
         self.train_views: list[View] = load_views(self.scene, self.train_keyframes, device=device)
         self.test_views: list[View] = load_held_out_views(self.scene, self.test_keyframes, self.config)
+        self._far_steps = None
+        if self.config.vertex_step_range_m > 0:
+            centres = torch.stack([torch.linalg.inv(v.T_cam_world)[:3, 3] for v in self.train_views])
+            self._far_steps = FarVertexSteps(centres, self.config.vertex_step_range_m)
         if self.config.background != "none" and self.config.background_where == "above-lidar":
             mark_background(self.train_views, self.scene.camera)
         masked = [float(v.moving_mask.float().mean()) for v in self.train_views if v.moving_mask is not None]
@@ -399,7 +404,10 @@ class Trainer:
         params = self.model.trainable() + list(self._view_params().values())
         finite = _finite_step(loss, params)
         if finite:
-            self.optimizer.step()
+            if self._far_steps is None:
+                self.optimizer.step()
+            else:
+                self._far_steps.step(self.model.params["vertices"], self.optimizer.step)
             if self.poses is not None:
                 self.poses.remove_common_motion()
         self.optimizer.zero_grad(set_to_none=True)
