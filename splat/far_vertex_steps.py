@@ -28,7 +28,8 @@ class FarVertexSteps:
     """Scales each optimiser step of the model's ``vertices`` per triangle by :func:`distance_scale`
     (module docstring). The triangles beyond the range and their scales are kept while the parameter
     tensor stays the same one: they are found anew when densification or pruning replaces it
-    (vertices move little between). The others' steps are left exactly as the optimiser made them."""
+    (vertices move little between), and go into checkpoints (:meth:`state_dict`) so that a resumed
+    run continues bit for bit. The others' steps are left exactly as the optimiser made them."""
 
     def __init__(self, camera_centres: Tensor, range_m: float) -> None:
         self.camera_centres, self.range_m = camera_centres, range_m
@@ -47,3 +48,12 @@ class FarVertexSteps:
         before = vertices[self._far]
         optimizer_step()
         vertices[self._far] = before + self._scale * (vertices[self._far] - before)
+
+    def state_dict(self) -> dict[str, Tensor] | None:
+        """The far triangles' rows and scales in use, or None before the first step."""
+        return None if self._for is None else {"far": self._far.clone(), "scale": self._scale.clone()}
+
+    def load_state_dict(self, state: dict[str, Tensor] | None, vertices: Tensor) -> None:
+        """Use ``state`` (:meth:`state_dict`) for the model's restored ``vertices``."""
+        if state is not None:
+            self._far, self._scale, self._for = state["far"], state["scale"].to(vertices), vertices

@@ -299,6 +299,7 @@ class Trainer:
             "state": asdict(self.state),
             "exposure": None if self.exposures is None else self.exposures.offsets.detach().cpu().clone(),
             "pose": None if self.poses is None else self.poses.params.detach().cpu().clone(),
+            "far_vertex_steps": None if self._far_steps is None else self._far_steps.state_dict(),
         }
         with atomic_path(path) as tmp:
             torch.save(state, tmp)
@@ -324,6 +325,8 @@ class Trainer:
         self.optimizer = make_optimizer(self.model, _learning_rates(self.config), self._view_params())
         self.optimizer.load_state_dict(ckpt["optimizer"])
         self.strategy.load_state_dict(ckpt["strategy"])
+        if self._far_steps is not None:
+            self._far_steps.load_state_dict(ckpt.get("far_vertex_steps"), self.model.params["vertices"])
         self.state = _State(**ckpt["state"])
         # Keep only the evaluations the checkpoint had already made.
         kept = [row for row in layout.read_metrics(self.run_dir) if row["iteration"] <= self.state.iteration]
