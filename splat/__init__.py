@@ -31,6 +31,7 @@ _EXPORTS = {
     "constant_background": "splat.background",
     "ViewExposures": "splat.exposure",
     "PoseCorrections": "splat.pose_corrections",
+    "FarVertexSteps": "splat.far_vertex_steps",
     "export_mesh": "splat.export",
     "decouple_and_scale": "splat.init_mesh",
     "ground_fill": "splat.init_mesh",
