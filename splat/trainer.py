@@ -193,7 +193,12 @@ class Trainer:
         self._far_steps = None
         if self.config.vertex_step_range_m > 0:
             centres = torch.stack([torch.linalg.inv(v.T_cam_world)[:3, 3] for v in self.train_views])
-            self._far_steps = FarVertexSteps(centres, self.config.vertex_step_range_m)
+            lidar, keyframes = lidar_points(self.scene, self.train_keyframes), self.train_keyframes
+            self._far_steps = FarVertexSteps(
+                centres,
+                self.config.vertex_step_range_m,
+                lambda triangles: torch.as_tensor(camera_only_triangles(triangles, lidar, keyframes)),
+            )
         if self.config.background != "none" and self.config.background_where == "above-lidar":
             mark_background(self.train_views, self.scene.camera)
         masked = [float(v.moving_mask.float().mean()) for v in self.train_views if v.moving_mask is not None]
@@ -631,12 +636,15 @@ def seen_triangles(model: TriangleModel, keyframes: list[Keyframe], camera: Came
     return seen
 
 
-def camera_only_triangles(model: TriangleModel, lidar: np.ndarray, keyframes: list[Keyframe]) -> np.ndarray:
-    """``(F,)`` bool: triangles whose centroid no LiDAR return ``lidar`` ``(N, 3)`` of ``keyframes``
-    explains (:func:`splat.camera_only.unexplained_points`): geometry from the images alone."""
+def camera_only_triangles(
+    triangles: torch.Tensor, lidar: np.ndarray, keyframes: list[Keyframe]
+) -> np.ndarray:
+    """``(F,)`` bool: the ``triangles`` ``(F, 3, 3)`` whose centroid no LiDAR return ``lidar`` ``(N, 3)``
+    of ``keyframes`` explains (:func:`splat.camera_only.unexplained_points`): geometry from the
+    images alone."""
     from splat.camera_only import unexplained_points
 
-    centroids = model.params["vertices"].detach().mean(dim=1).cpu().double().numpy()
+    centroids = triangles.detach().mean(dim=1).cpu().double().numpy()
     centres = np.stack([k.T_world_cam[:3, 3] for k in keyframes])
     return unexplained_points(centroids, lidar, centres)
 
@@ -666,7 +674,7 @@ def export_run(
 
     seen = seen_triangles(model, keyframes, scene.camera)
     triangles = model.params["vertices"].detach().cpu().double().numpy()
-    camera_only = camera_only_triangles(model, lidar_points(scene, keyframes), keyframes)
+    camera_only = camera_only_triangles(model.params["vertices"], lidar_points(scene, keyframes), keyframes)
     result = export_mesh(model, run_dir, seen=seen, floor=on_floor(floor, triangles), camera_only=camera_only)
     return json.loads(json.dumps(asdict(result), default=str))
 

@@ -414,7 +414,9 @@ def test_training_with_and_without_a_background_exports_only_the_triangles(scene
         model,
         tmp_path / "without",
         camera_only=camera_only_triangles(
-            model, lidar_points(trainer.scene, trainer.train_keyframes), trainer.train_keyframes
+            model.params["vertices"],
+            lidar_points(trainer.scene, trainer.train_keyframes),
+            trainer.train_keyframes,
         ),
     )
     assert (tmp_path / "without" / "mesh.ply").read_bytes() == (tmp_path / "run" / "mesh.ply").read_bytes()

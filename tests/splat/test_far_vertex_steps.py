@@ -8,6 +8,10 @@ def _triangle_at(distance_m: float) -> torch.Tensor:
     return torch.tensor([[distance_m, 0.0, 0.1], [distance_m, 0.1, -0.1], [distance_m, -0.1, -0.1]])
 
 
+def _all(triangles: torch.Tensor) -> torch.Tensor:
+    return torch.ones(len(triangles), dtype=torch.bool)
+
+
 def test_distance_scale_grows_beyond_the_range_only():
     triangles = torch.stack([_triangle_at(2.0), _triangle_at(8.0), _triangle_at(24.0), _triangle_at(-40.0)])
     cameras = torch.tensor([[0.0, 0.0, 0.0], [-10.0, 0.0, 0.0]])
@@ -20,7 +24,7 @@ def test_step_scales_each_triangles_move_and_follows_a_replaced_tensor():
     cameras = torch.zeros(1, 3)
     vertices = torch.stack([_triangle_at(4.0), _triangle_at(16.0)]).requires_grad_(True)
     start = vertices.detach().clone()
-    steps = FarVertexSteps(cameras, range_m=8.0)
+    steps = FarVertexSteps(cameras, range_m=8.0, camera_only=_all)
 
     def add(tensor: torch.Tensor) -> None:
         with torch.no_grad():
@@ -35,3 +39,17 @@ def test_step_scales_each_triangles_move_and_follows_a_replaced_tensor():
     replaced = torch.stack([_triangle_at(32.0)]).requires_grad_(True)
     steps.step(replaced, lambda: add(replaced))
     torch.testing.assert_close(replaced.detach()[0, 0, 0], torch.tensor(32.04))
+
+
+def test_triangles_a_lidar_return_backs_keep_the_optimisers_step():
+    vertices = torch.stack([_triangle_at(24.0), _triangle_at(24.0)]).requires_grad_(True)
+    start = vertices.detach().clone()
+    steps = FarVertexSteps(torch.zeros(1, 3), range_m=8.0, camera_only=lambda _: torch.tensor([True, False]))
+
+    def add() -> None:
+        with torch.no_grad():
+            vertices.add_(0.01)
+
+    steps.step(vertices, add)
+    torch.testing.assert_close(vertices.detach()[0] - start[0], torch.full((3, 3), 0.03))
+    assert torch.equal(vertices.detach()[1], start[1] + 0.01)
