@@ -110,9 +110,9 @@ class TrainConfig(BaseModel):
     vertex_step_range_m: float = Field(
         8.0,
         ge=0,
-        description="beyond this distance from the nearest training camera a triangle's vertex steps grow "
-        "with its distance (splat.far_vertex_steps: far geometry moves as fast, in angle, as at this "
-        "distance); 0: every vertex at lr_vertices",
+        description="beyond this distance from the nearest training camera a camera-only triangle's vertex "
+        "steps grow with its distance (splat.far_vertex_steps: far geometry the LiDAR does not back moves "
+        "as fast, in angle, as at this distance); 0: every vertex at lr_vertices",
     )
     vertex_lr_delay: float = Field(0.05, ge=0, le=1, description="vertex lr is 0 for this fraction")
     lr_final_factor: float = Field(0.1, gt=0, le=1)
