@@ -186,19 +186,24 @@ class Trainer:
         self.train_keyframes = train
         self.test_keyframes = self.scene.split("test")
 
+    def _far_vertex_steps(self, lidar: np.ndarray) -> FarVertexSteps | None:
+        """The scaling of far camera-only triangles' steps (:mod:`splat.far_vertex_steps`; camera-only:
+        no return of the training keyframes' ``lidar`` ``(N, 3)`` near them), or None when
+        ``vertex_step_range_m`` is 0."""
+        if self.config.vertex_step_range_m <= 0:
+            return None
+        centres = torch.stack([torch.linalg.inv(v.T_cam_world)[:3, 3] for v in self.train_views])
+        keyframes = self.train_keyframes
+        return FarVertexSteps(
+            centres,
+            self.config.vertex_step_range_m,
+            lambda triangles: torch.as_tensor(camera_only_triangles(triangles, lidar, keyframes)),
+        )
+
     def _load_views(self) -> None:
         device = self.config.device
         self.train_views: list[View] = load_views(self.scene, self.train_keyframes, device=device)
         self.test_views: list[View] = load_held_out_views(self.scene, self.test_keyframes, self.config)
-        self._far_steps = None
-        if self.config.vertex_step_range_m > 0:
-            centres = torch.stack([torch.linalg.inv(v.T_cam_world)[:3, 3] for v in self.train_views])
-            lidar, keyframes = lidar_points(self.scene, self.train_keyframes), self.train_keyframes
-            self._far_steps = FarVertexSteps(
-                centres,
-                self.config.vertex_step_range_m,
-                lambda triangles: torch.as_tensor(camera_only_triangles(triangles, lidar, keyframes)),
-            )
         if self.config.background != "none" and self.config.background_where == "above-lidar":
             mark_background(self.train_views, self.scene.camera)
         masked = [float(v.moving_mask.float().mean()) for v in self.train_views if v.moving_mask is not None]
@@ -278,9 +283,9 @@ class Trainer:
                              path=self.run_dir)  # fmt: skip
         self._select_keyframes()
         self._load_views()
-        self.floor = scene_floor(
-            self.scene, self.train_keyframes, lidar_points(self.scene, self.train_keyframes)
-        )
+        lidar = lidar_points(self.scene, self.train_keyframes)
+        self._far_steps = self._far_vertex_steps(lidar)
+        self.floor = scene_floor(self.scene, self.train_keyframes, lidar)
         self.strategy.keep_far_floor(
             self.floor, np.stack([k.T_world_cam[:3, 3] for k in self.train_keyframes])
         )

@@ -359,7 +359,8 @@ def test_training_improves_the_view_and_writes_the_run_folder(scene_dir, tmp_pat
 
 
 def test_resume_after_a_kill_reaches_identical_parameters(scene_dir, tmp_path, monkeypatch):
-    # Every triangle counts as far (splat.far_vertex_steps): its steps' scales must survive the kill.
+    # Every camera-only triangle counts as far (splat.far_vertex_steps): the scales of its steps must
+    # survive the kill.
     config = _tiny_config(vertex_step_range_m=0.5)
     whole = train(scene_dir, tmp_path / "whole", config, progress=False, log=lambda *_: None)
 
