@@ -307,6 +307,18 @@ def test_the_background_also_shows_where_the_lidar_reached_nothing_between_its_r
     assert not beyond_range(depth, focal, moving).any()
 
 
+@pytest.mark.parametrize("k", [3, 9, 11])
+def test_the_masks_dilate_by_a_whole_square(k):
+    from scipy.ndimage import binary_dilation
+
+    from splat.background_mask import _dilate
+
+    mask = torch.rand(37, 53, generator=torch.Generator().manual_seed(k)) > 0.97
+    mask[0, 0] = mask[-1, 25] = True  # at the border too
+    square = binary_dilation(mask.numpy(), structure=np.ones((k, k), dtype=bool))
+    assert np.array_equal(_dilate(mask, k).numpy(), square)
+
+
 def test_a_few_adam_steps_learn_a_sky_gradient():
     model = lower_half_model()
     rays, _ = camera_rays(CAMERA, torch.device("cpu"), torch.float32)
