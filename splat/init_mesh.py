@@ -28,6 +28,9 @@ from splat.floor_cells import (
     range_scaled_cells,
 )
 
+#: The ground fill's note where the scene has no floor plane.
+NO_FLOOR = "no floor plane in the warm-start mesh; ground fill skipped"
+
 
 def decouple_and_scale(vertices: np.ndarray, faces: np.ndarray, scale: float = 2.0) -> np.ndarray:
     """Independent triangles ``(F, 3, 3)`` from a mesh (``(V, 3)``, ``(F, 3)``), each scaled about
@@ -177,6 +180,7 @@ def ground_fill(
     complete_hidden: bool = True,
     closing_m: float = 0.6,
     enclosing: trimesh.Trimesh | None = None,
+    plane: np.ndarray | None = None,
 ) -> GroundFill:
     """The floor the warm-start mesh lacks: cells the cameras see through its holes, and hidden
     cells the room encloses.
@@ -194,12 +198,14 @@ def ground_fill(
     sees and the LiDAR does not reach is completed where the room encloses it (gaps up to
     ``2 * closing_m`` bridged), within ``max_range_m`` of a camera along the floor, by the walls
     and objects of ``enclosing`` (default ``mesh``: pass the warm start before it was simplified,
-    whose thin stretches of wall a simplification breaks up).
+    whose thin stretches of wall a simplification breaks up). ``plane`` ``(4,)``: the floor when
+    the caller has fitted it already (default: :func:`fit_floor_plane` of ``mesh`` and ``lidar``).
     """
     empty = np.zeros((0, 3, 3))
-    plane = fit_floor_plane(mesh, poses_world_cam, lidar)
     if plane is None:
-        return GroundFill(empty, empty, None, "no floor plane in the warm-start mesh; ground fill skipped")
+        plane = fit_floor_plane(mesh, poses_world_cam, lidar)
+    if plane is None:
+        return GroundFill(empty, empty, None, NO_FLOOR)
     scene = mesh_raycaster(mesh)
     ys, xs = np.mgrid[0 : camera.height : pixel_stride, 0 : camera.width : pixel_stride]
     pixels = np.column_stack([xs.ravel(), ys.ravel()]).astype(np.float64)

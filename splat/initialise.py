@@ -18,9 +18,8 @@ from splat.at_infinity import explained_at_infinity
 from splat.background import background_sphere, constant_background
 from splat.camera_only import camera_only_seeds
 from splat.config import TrainConfig
-from splat.init_mesh import decouple_and_scale, ground_fill, simplify, up_direction
+from splat.init_mesh import NO_FLOOR, decouple_and_scale, ground_fill, simplify, up_direction
 from splat.lidar_fill import lidar_fill
-from splat.lidar_points import keyframe_lidar_points, lidar_points
 from splat.lidar_snap import snap_to_lidar
 from splat.model import TriangleModel
 from splat.plane_sweep import keyframe_sweeps, swept_cells
@@ -47,7 +46,13 @@ def _scaled(triangles: np.ndarray, scale: float) -> np.ndarray:
     return decouple_and_scale(corners, np.arange(len(corners)).reshape(-1, 3), scale)
 
 
-def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Initialisation:
+def _mesh_init(
+    scene: Scene,
+    train: list[Keyframe],
+    config: TrainConfig,
+    returns: list[np.ndarray],
+    floor: np.ndarray | None,
+) -> Initialisation:
     mesh = full_mesh = load_mesh(scene.mesh_path)
     notes = []
     if len(mesh.faces) > config.init_max_triangles:
@@ -66,18 +71,19 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
         notes.append(snap.reason)
     mesh = trimesh.Trimesh(vertices, mesh.faces, process=False)
     triangles = decouple_and_scale(mesh.vertices, np.asarray(mesh.faces), config.init_scale)
-    per_keyframe = keyframe_lidar_points(scene, train)
-    lidar = np.concatenate(per_keyframe)
+    lidar = np.concatenate(returns)
     poses = np.stack([k.T_world_cam for k in train])
     up = up_direction(poses)
     if config.lidar_fill:
-        fill_returns = lidar_fill(mesh, per_keyframe, poses[:, :3, 3])
+        fill_returns = lidar_fill(mesh, returns, poses[:, :3, 3])
         notes.append(fill_returns.reason)
         triangles = np.concatenate([triangles, fill_returns.triangles])
-    if config.ground_fill:
+    if config.ground_fill and floor is None:
+        notes.append(NO_FLOOR)
+    elif config.ground_fill:
         fill = ground_fill(
             mesh, scene.camera, poses, lidar, config.ground_cell_m,
-            complete_hidden=config.complete_hidden_floor, enclosing=full_mesh,
+            complete_hidden=config.complete_hidden_floor, enclosing=full_mesh, plane=floor,
         )  # fmt: skip
         notes.append(fill.reason)
         # Seen cells are scaled like the mesh faces, to overlap while they train; hidden ones never
@@ -129,17 +135,26 @@ def _mesh_init(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Init
     return Initialisation(triangles, colors, notes)
 
 
-def initial_triangles(scene: Scene, train: list[Keyframe], config: TrainConfig) -> Initialisation:
-    """The initial triangles of ``config.init`` for ``scene`` (``train``: the training keyframes)."""
+def initial_triangles(
+    scene: Scene,
+    train: list[Keyframe],
+    config: TrainConfig,
+    returns: list[np.ndarray],
+    floor: np.ndarray | None,
+) -> Initialisation:
+    """The initial triangles of ``config.init`` for ``scene`` (``train``: the training keyframes,
+    ``returns``: the world points ``(N_k, 3)`` of each one's LiDAR returns,
+    :func:`~splat.lidar_points.keyframe_lidar_points`; ``floor``: the scene's floor plane ``(4,)``,
+    :func:`~splat.init_mesh.fit_floor_plane`, or None)."""
     if config.init == "mesh":
-        return _mesh_init(scene, train, config)
+        return _mesh_init(scene, train, config, returns, floor)
     from splat.init_delaunay import delaunay_triangles
 
     if config.init == "delaunay-sfm":
         points, colors = scene.sparse_points()
         triangles, tri_colors = delaunay_triangles(points, colors / 255.0, seed=config.seed)
         return Initialisation(triangles, tri_colors, [f"Delaunay of {len(points)} SfM points"])
-    points = lidar_points(scene, train)
+    points = np.concatenate(returns)
     triangles, _ = delaunay_triangles(
         points, np.full_like(points, GREY), max_points=config.lidar_init_points, seed=config.seed
     )

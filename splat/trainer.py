@@ -40,7 +40,7 @@ from splat.finite import all_finite
 from splat.floor_cells import PlaneGrid, on_floor
 from splat.held_out_views import evaluate_views, load_held_out_views, mark_background, write_renders
 from splat.initialise import build_model, initial_triangles
-from splat.lidar_points import lidar_points
+from splat.lidar_points import keyframe_lidar_points, lidar_points
 from splat.losses import image_moments, training_loss
 from splat.model import TriangleModel, save_model
 from splat.param_rows import make_optimizer
@@ -218,8 +218,11 @@ class Trainer:
         if self.config.w_depth > 0 and all(v.depth is None for v in self.train_views):
             self.state.skips.append("no LiDAR depth in any training view: depth loss skipped")
 
-    def _fresh_start(self) -> None:
-        init = initial_triangles(self.scene, self.train_keyframes, self.config)
+    def _fresh_start(self, returns: list[np.ndarray]) -> None:
+        """Initialise the model and the optimiser from the warm start; ``returns``: the world points
+        ``(N_k, 3)`` of each training keyframe's LiDAR returns."""
+        floor = None if self.floor is None else self.floor.plane
+        init = initial_triangles(self.scene, self.train_keyframes, self.config, returns, floor)
         for note in init.notes:
             self.log(f"init: {note}")
         self.model = build_model(
@@ -283,9 +286,10 @@ class Trainer:
                              path=self.run_dir)  # fmt: skip
         self._select_keyframes()
         self._load_views()
-        lidar = lidar_points(self.scene, self.train_keyframes)
-        self._far_steps = self._far_vertex_steps(lidar)
-        self.floor = scene_floor(self.scene, self.train_keyframes, lidar)
+        returns = keyframe_lidar_points(self.scene, self.train_keyframes)
+        self.lidar = np.concatenate(returns)  # (N, 3), kept for the export's camera-only flags
+        self._far_steps = self._far_vertex_steps(self.lidar)
+        self.floor = scene_floor(self.scene, self.train_keyframes, self.lidar)
         self.strategy.keep_far_floor(
             self.floor, np.stack([k.T_world_cam[:3, 3] for k in self.train_keyframes])
         )
@@ -296,7 +300,7 @@ class Trainer:
             layout.run_info_path(self.run_dir).write_text(
                 json.dumps({"scene": str(self.scene.root.resolve()), "config": layout.CONFIG}, indent=1)
             )
-            self._fresh_start()
+            self._fresh_start(returns)
 
     # -- checkpoints ----------------------------------------------------------------------------
     def save_checkpoint(self) -> None:
@@ -565,12 +569,13 @@ class Trainer:
         test = self.state.last_test
         exposure = self._write_color_maps()
         write_renders(self.model, self.test_views, self.scene.camera, layout.renders_dir(self.run_dir))
-        keyframes, poses = self.train_keyframes, {}
+        keyframes, poses, lidar = self.train_keyframes, {}, self.lidar
         if self.poses is not None:
             keyframes = self.poses.corrected_keyframes(keyframes)
             write_keyframe_poses(keyframes, layout.keyframe_poses_path(self.run_dir))
             poses = self.poses.summary()
-        export = export_run(self.model, self.scene, keyframes, self.run_dir, self.floor)
+            lidar = lidar_points(self.scene, keyframes)  # the returns where the corrected poses put them
+        export = export_run(self.model, self.scene, keyframes, self.run_dir, self.floor, lidar)
         c, s = self.config, self.state
         result = TrainResult(
             str(self.run_dir), c.method, c.preset, c.device, s.iteration, round(s.elapsed_s, 3),
@@ -667,19 +672,25 @@ def scene_floor(scene: Scene, keyframes: list[Keyframe], lidar: np.ndarray) -> P
 
 
 def export_run(
-    model: TriangleModel, scene: Scene, keyframes: list[Keyframe], run_dir: Path, floor: PlaneGrid | None
+    model: TriangleModel,
+    scene: Scene,
+    keyframes: list[Keyframe],
+    run_dir: Path,
+    floor: PlaneGrid | None,
+    lidar: np.ndarray,
 ) -> dict:
     """Export ``model``'s meshes into ``run_dir`` (:func:`splat.export.export_mesh`): the collision
     mesh keeps the triangles seen from ``keyframes`` and the floor no camera sees (the triangles on
     ``floor``, :func:`scene_floor`: the ground fill's completion under furniture and round the
     path's ends, which never trains: without it a physics probe falls through there); the render
-    mesh flags those no LiDAR return of theirs explains; returns the export's summary for
+    mesh flags those no return of the keyframes' LiDAR ``lidar`` ``(N, 3)`` (world points,
+    :func:`~splat.lidar_points.lidar_points`) explains; returns the export's summary for
     ``summary.json``."""
     from splat.export import export_mesh
 
     seen = seen_triangles(model, keyframes, scene.camera)
     triangles = model.params["vertices"].detach().cpu().double().numpy()
-    camera_only = camera_only_triangles(model.params["vertices"], lidar_points(scene, keyframes), keyframes)
+    camera_only = camera_only_triangles(model.params["vertices"], lidar, keyframes)
     result = export_mesh(model, run_dir, seen=seen, floor=on_floor(floor, triangles), camera_only=camera_only)
     return json.loads(json.dumps(asdict(result), default=str))
 

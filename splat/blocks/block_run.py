@@ -150,9 +150,8 @@ def _merge(
     test = evaluate_views(model, test_views, scene.camera) if test_views else {}
     write_renders(model, test_views, scene.camera, layout.renders_dir(run_dir))
     keyframes = scene.split("train")
-    export = export_run(
-        model, scene, keyframes, run_dir, scene_floor(scene, keyframes, lidar_points(scene, keyframes))
-    )
+    lidar = lidar_points(scene, keyframes)
+    export = export_run(model, scene, keyframes, run_dir, scene_floor(scene, keyframes, lidar), lidar)
     summaries = [results[b.index]["summary"] for b in blocks]
     iterations = sum(s["iterations"] for s in summaries)
     line = {"iteration": iterations, "elapsed_s": round(wall_s, 3), "n_triangles": model.n_triangles, **test}
