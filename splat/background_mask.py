@@ -75,6 +75,6 @@ def _pool_columns(values: Tensor, k: int) -> Tensor:
 def _dilate(mask: Tensor, k: int) -> Tensor:
     """``(H, W)`` bool: ``mask`` dilated by a ``k`` × ``k`` square (odd ``k``), as a ``k``-wide row
     then a ``k``-high column (the square's maximum is the column's of the rows': 2k comparisons a
-    pixel instead of k², 4x faster at k = 11)."""
+    pixel instead of k²: 1.6x faster at k = 11 on a 640x240 image)."""
     rows = F.max_pool2d(mask[None, None].float(), (1, k), stride=1, padding=(0, k // 2))
     return F.max_pool2d(rows, (k, 1), stride=1, padding=(k // 2, 0))[0, 0] > 0
