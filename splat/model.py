@@ -129,9 +129,11 @@ class TriangleModel:
         # Only the masked pixels (indoors often none): the harmonics are not evaluated elsewhere.
         pixels = background_mask.reshape(-1).nonzero().squeeze(1)
         bg = background_pixels(self.background, camera, T_cam_world, pixels, self.background_sphere)
-        added = torch.zeros_like(out.rgb).view(-1, 3)
-        added = added.index_add(0, pixels, bg * shows.reshape(-1)[pixels, None])
-        return replace(out, rgb=out.rgb + added.view_as(out.rgb))
+        # index_put's backward gathers the image's gradient, quick in any memory layout; index_add's
+        # index_select is 4x slower on the D-SSIM term's channel-first gradient (4.6 ms a step on the
+        # 20 s street).
+        placed = torch.zeros_like(out.rgb).view(-1, 3).index_put((pixels,), bg).view_as(out.rgb)
+        return replace(out, rgb=out.rgb + placed * shows[..., None])
 
     @torch.no_grad()
     def render_at(
