@@ -19,6 +19,7 @@ from rig.recording_options import (
     time_span,
 )
 from slam_bridge.prepare_cli import DOWNSCALE_OPTION, KEYFRAME_DISTANCE_OPTION, MAX_SIZE_OPTION
+from splat.config import PRESET_HELP
 
 if TYPE_CHECKING:
     from lts.pipeline import ReconstructResult
@@ -99,7 +100,7 @@ def reconstruct_command(
         None, "--gt", help="Ground-truth folder (mesh.ply + trajectory.tum) to score against."
     ),
     method: str = typer.Option("ours", help="Training method (see lts train --help)."),
-    preset: str = typer.Option("default", help="Training preset: fast, default or paper."),
+    preset: str = typer.Option("default", help=f"Training preset: {PRESET_HELP}."),
     iterations: int | None = typer.Option(None, min=1, help="Override the preset's iteration count."),
     device: str = typer.Option("cpu", help="cpu or cuda for training."),
     seed: int = typer.Option(0, min=0, help="Training seed."),

@@ -9,7 +9,7 @@ import typer
 from rig.cli_support import console, emit_json, output_folder_option
 from rig.errors import InputError
 from splat.blocks.options import BlockOptions, parse_block_count, refuse_learnt_poses
-from splat.config import METHODS, PRESETS, TrainConfig
+from splat.config import METHODS, PRESET_HELP, TrainConfig
 
 
 def _block_option(flag: str, minimum: float, what: str, default: float):
@@ -28,9 +28,7 @@ def train_command(
         help=f"One of {', '.join(METHODS)}: ours (mesh warm start, LiDAR depth + normal losses, variance "
         "densification), tsplus (photometric-only TS+ baseline from SfM points), or an ablation.",
     ),
-    preset: str = typer.Option(
-        "default", help=f"One of {', '.join(PRESETS)} (iterations, budgets, schedules)."
-    ),
+    preset: str = typer.Option("default", help=f"One of {PRESET_HELP}."),
     iterations: int | None = typer.Option(None, min=1, help="Override the preset's iteration count."),
     max_triangles: int | None = typer.Option(None, min=1, help="Override the triangle budget."),
     init_noise: float = typer.Option(

@@ -31,14 +31,15 @@ def scene_dir(tmp_path_factory):
     return write_training_scene(tmp_path_factory.mktemp("scene"))
 
 
+_TINY = dict(
+    iterations=60, densify_every=20, densify_until=0.5, eval_every=20, checkpoint_every=20,
+    init_max_triangles=500, ground_fill=False, drop_redundant_keyframes=False, growth_rate=0.2,
+    coarse_min_side_px=1,  # the 64x48 views start at 32x24: the coarse start is exercised too
+)  # fmt: skip
+
+
 def _tiny_config(**overrides):
-    values = dict(
-        iterations=60, densify_every=20, densify_until=0.5, eval_every=20, checkpoint_every=20,
-        init_max_triangles=500, ground_fill=False, drop_redundant_keyframes=False, growth_rate=0.2,
-        coarse_min_side_px=1,  # the 64x48 views start at 32x24: the coarse start is exercised too
-    )  # fmt: skip
-    values.update(overrides)
-    return make_config("ours", "default", **values)
+    return make_config("ours", "default", **{**_TINY, **overrides})
 
 
 def _model(n: int = 6, seed: int = 0) -> TriangleModel:
@@ -253,6 +254,18 @@ def test_a_strategy_densifies_on_schedule_and_moves_adam_state_with_the_rows():
         assert torch.equal(state["exp_avg"][:2], before[name][kept])
         assert not state["exp_avg"][2:].any() and not state["exp_avg_sq"][2:].any()
     optimizer.step()  # the optimiser still works on the new tensors
+
+
+def test_the_detail_preset_adds_more_triangles_at_each_densification(scene_dir, tmp_path):
+    added = {}
+    for preset in ("default", "detail"):
+        values = {**_TINY, "growth_rate": make_config("ours", preset).growth_rate}
+        config = make_config("ours", preset, **values)
+        assert config.max_triangles == {"default": 80_000, "detail": 200_000}[preset]
+        result = train(scene_dir, tmp_path / preset, config, progress=False, log=lambda *_: None)
+        added[preset] = [row["after"] - row["before"] + row["pruned"] for row in result.densification]
+    assert len(added["detail"]) == len(added["default"]) > 0
+    assert all(d > 2 * n for d, n in zip(added["detail"], added["default"], strict=True))
 
 
 @pytest.mark.parametrize("keep_far_floor", [True, False])
