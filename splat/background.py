@@ -39,11 +39,6 @@ MAP_TEXELS = sum(rows * columns for rows, columns in MAP_LEVELS)
 #: sky) sample the whole grids, whose gradient is one scatter per grid instead of twelve rows per
 #: direction.
 GATHER_BELOW = 8192
-#: The directions sample the whole grids as this many batch entries of one grid: on the CPU,
-#: grid_sample's backward pass (a scatter into the grid) runs one thread per entry (65 000
-#: directions on 2 cores: 7.3 → 4.3 ms for the three grids, forward and backward). A fixed count,
-#: so that the gradient's sum does not depend on the machine's threads.
-SAMPLING_BATCHES = 2
 _C0 = 0.28209479177387814
 _C1 = 0.4886025119029199
 _C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
@@ -110,8 +105,6 @@ def map_values(texels: Tensor, directions: Tensor) -> Tensor:
     elevation = -torch.asin(z.clamp(-1.0, 1.0)) / (math.pi / 2)  # -1: up, the grid's first row
     if len(directions) < GATHER_BELOW:
         return _gathered_map_values(texels, azimuth, elevation)
-    n = len(directions)
-    padded = -(-n // SAMPLING_BATCHES) * SAMPLING_BATCHES
     values = torch.zeros_like(directions)
     # One split, not a slice per level: each slice's backward pass writes a zero gradient of all texels.
     levels = texels.split([rows * columns for rows, columns in MAP_LEVELS])
@@ -120,11 +113,8 @@ def map_values(texels: Tensor, directions: Tensor) -> Tensor:
         # One column more on each side, copied from the other edge: the map closes at azimuth ±180°.
         wrapped = F.pad(grid, (1, 1, 0, 0), mode="circular")
         at = torch.stack([azimuth * columns / (columns + 2), elevation], dim=-1).to(grid)
-        at = F.pad(at, (0, 0, 0, padded - n)).view(SAMPLING_BATCHES, 1, -1, 2)
-        sampled = F.grid_sample(
-            wrapped.expand(SAMPLING_BATCHES, -1, -1, -1), at, padding_mode="border", align_corners=False
-        )
-        values = values + sampled[:, :, 0].transpose(1, 2).reshape(padded, 3)[:n]
+        sampled = F.grid_sample(wrapped, at[None, None], padding_mode="border", align_corners=False)
+        values = values + sampled[0, :, 0].T
     return values
 
 
