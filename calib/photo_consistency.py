@@ -25,6 +25,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from types import ModuleType
 
 import cv2
 import numpy as np
@@ -32,6 +33,7 @@ from scipy.optimize import minimize
 
 from calib.intervals import NORMAL_95, jackknife_interval_95
 from calib.lidar_map import LidarMap
+from calib.photo_kernel import photo_extension
 from calib.targetless import ExtrinsicResult, apply_increment, working_image, working_pixels
 from rig.camera import CameraModel
 from rig.errors import InputError
@@ -211,6 +213,20 @@ class _Problem:
         """The grey-level variance over the frames that see it ``(n,)`` of each observed point that
         at least :data:`MIN_VIEWS` of them see in the image, and the variance of these points' mean
         grey levels, with ``T_cam_lidar`` ``T`` (grey levels standardised per frame)."""
+        extension = photo_extension()
+        sums = self.point_sums(T, obs) if extension is None else self.kernel_point_sums(extension, T, obs)
+        total, total_square, count = sums
+        good = count >= MIN_VIEWS
+        point_mean = total[good] / count[good]
+        point_square = total_square[good] / count[good]
+        spread = np.maximum(point_square - point_mean**2, 0.0)
+        return spread, float(np.var(point_mean)) if len(point_mean) else 0.0
+
+    def point_sums(self, T: np.ndarray, obs: _Observations) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per observed point ``(n_points,)``: the sums of its grey levels standardised per frame
+        and of their squares (float64), and how many of its observations fall inside their image
+        (int64), with ``T_cam_lidar`` ``T``. The specification of the compiled
+        :meth:`kernel_point_sums`, and its stand-in."""
         # The search's inner loop (thousands of calls): float32 points, (3, M) for one matrix
         # product, per-frame sums over contiguous runs instead of scattered bincounts, and the
         # few observations that fall outside their image zeroed instead of weighting all of them.
@@ -229,11 +245,29 @@ class _Problem:
         values = (values - np.repeat(mean, obs.run_lengths)) * np.repeat(scale, obs.run_lengths)
         values[outside] = 0.0
         count = obs.point_counts - np.bincount(obs.point[outside], minlength=obs.n_points)
-        good = count >= MIN_VIEWS
-        point_mean = np.bincount(obs.point, values, minlength=obs.n_points)[good] / count[good]
-        point_square = np.bincount(obs.point, values * values, minlength=obs.n_points)[good] / count[good]
-        spread = np.maximum(point_square - point_mean**2, 0.0)
-        return spread, float(np.var(point_mean)) if len(point_mean) else 0.0
+        total = np.bincount(obs.point, values, minlength=obs.n_points)
+        return total, np.bincount(obs.point, values * values, minlength=obs.n_points), count
+
+    def kernel_point_sums(
+        self, extension: ModuleType, T: np.ndarray, obs: _Observations
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`point_sums` in one pass of the compiled ``extension`` (:mod:`calib.photo_kernel`):
+        4.4 -> 1.4 ms on two cores (2.3 ms on one) for the 214 000 observations of a 20-frame room.
+        Its bilinear samples are exact where OpenCV's are at 1/32 px, and its sums are added in
+        another order: the sums agree to ~1e-3, the cost to ~1e-6 (relative)."""
+        import torch
+
+        def tensor(a: np.ndarray, dtype: type) -> torch.Tensor:
+            return torch.from_numpy(np.ascontiguousarray(a, dtype=dtype))
+
+        (fx, _, cx), (_, fy, cy) = self.K[:2]
+        runs = (tensor(r, np.int64) for r in (obs.run_starts, obs.run_lengths, obs.run_rows))
+        sums = extension.point_sums(
+            tensor(self.images, np.float32), tensor(obs.xyz.T, np.float32), tensor(T[:3], np.float32),
+            float(fx), float(fy), float(cx), float(cy), self.height, *runs, tensor(obs.point, np.int64),
+            obs.n_points,
+        )  # fmt: skip
+        return tuple(s.numpy() for s in sums)
 
     def cost(self, T: np.ndarray, obs: _Observations) -> float:
         """The photo-inconsistency of the observed points with ``T_cam_lidar`` ``T``: the mean of
@@ -270,6 +304,8 @@ class _Observations:
         self.run_lengths = per_frame[per_frame > 0]
         self.run_starts = np.cumsum(self.run_lengths) - self.run_lengths
         self.run = (np.cumsum(per_frame > 0) - 1)[row]
+        #: ``(R,)`` the first row of each run's frame in the stacked images.
+        self.run_rows = frames[per_frame > 0].astype(np.int64) * image_height
         #: ``(n_points,)`` how many frames observe each point.
         self.point_counts = np.bincount(point, minlength=n_points)
 

@@ -1,0 +1,88 @@
+"""The compiled photo-consistency sums against their NumPy specification, and the stand-in where
+no compiler is at hand."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from calib import photo_consistency, photo_kernel
+from calib.photo_consistency import ConsistencyFrame, _Problem
+from rig.camera import CameraModel
+from rig.transforms import make_transform
+
+CAMERA = CameraModel("pinhole", 160, 120, np.array([[100.0, 0, 80], [0, 100.0, 60], [0, 0, 1]]), np.zeros(0))
+
+
+def _room_problem() -> _Problem:
+    """Six frames looking at a textured room corner (two walls and a floor, some points behind the
+    cameras or off their images), each image a different gain and offset of one smooth texture."""
+    rng = np.random.default_rng(3)
+    a, b = rng.uniform(-3, 3, (2, 3000))
+    world = np.vstack([
+        np.column_stack([a, b, np.full_like(a, 6.0)]),  # the wall ahead
+        np.column_stack([np.full_like(a, 3.0), b, 3 + a]),  # the wall on the right
+        np.column_stack([a, np.full_like(a, 1.5), 3 + b]),  # the floor
+        np.column_stack([a, b, np.full_like(a, -2.0)]),  # behind every camera
+    ])  # fmt: skip
+    texture = cv2.GaussianBlur(rng.uniform(0, 255, (120, 160)).astype(np.float32), (0, 0), 3)
+    texture = 255 * (texture - texture.min()) / np.ptp(texture)
+    frames = []
+    for k in range(6):
+        gain, offset = 0.7 + 0.05 * k, 10 * k
+        image = np.clip(gain * np.roll(texture, 3 * k, axis=1) + offset, 0, 255).astype(np.uint8)
+        turn = Rotation.from_euler("y", 4 * k - 10, degrees=True).as_matrix()
+        frames.append(ConsistencyFrame(image, make_transform(turn, (0.2 * k - 0.5, 0.0, 0.1 * k))))
+    return _Problem(frames, CAMERA, world)
+
+
+@pytest.mark.skipif(photo_kernel.photo_extension() is None, reason="no C++ toolchain to build the kernel")
+@pytest.mark.parametrize("blur", [4.0, 1.0])
+def test_the_compiled_sums_are_the_numpy_sums(blur: float, monkeypatch: pytest.MonkeyPatch) -> None:
+    problem = _room_problem()
+    problem.blur(blur)
+    frames = np.arange(6)
+    obs = problem.observations(np.eye(4), frames)
+    assert obs.n_points > 1000
+    for step in range(4):  # the start and extrinsics that move points off their images
+        turn = Rotation.from_rotvec(np.deg2rad([0.5, -1.0, 2.0]) * step).as_matrix()
+        T = make_transform(turn, np.array([0.03, -0.02, 0.05]) * step)
+        total, square, count = problem.point_sums(T, obs)
+        k_total, k_square, k_count = problem.kernel_point_sums(photo_kernel.photo_extension(), T, obs)
+        np.testing.assert_array_equal(k_count, count)
+        assert (count < obs.point_counts).any() == (step > 0)
+        # OpenCV's bilinear samples are at 1/32 px, the kernel's exact: the sums of up to six
+        # standardised grey levels (scale 1) agree to ~3e-5.
+        np.testing.assert_allclose(k_total, total, atol=2e-4)
+        np.testing.assert_allclose(k_square, square, atol=1e-3)
+        kernel_cost = problem.cost(T, obs)
+        with monkeypatch.context() as numpy_only:
+            numpy_only.setattr(photo_consistency, "photo_extension", lambda: None)
+            assert kernel_cost == pytest.approx(problem.cost(T, obs), rel=1e-4)
+
+
+def test_the_numpy_sums_stand_in_without_a_compiler(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("LTS_CACHE_DIR", str(tmp_path))  # nothing built there yet
+    monkeypatch.setenv("CXX", "no-such-compiler")
+    assert photo_kernel.photo_extension.__wrapped__() is None
+    monkeypatch.setattr(photo_consistency, "photo_extension", lambda: None)
+    problem = _room_problem()
+    obs = problem.observations(np.eye(4), np.arange(6))
+    spread, between = problem.spreads(np.eye(4), obs)
+    total, square, count = problem.point_sums(np.eye(4), obs)
+    good = count >= photo_consistency.MIN_VIEWS
+    mean, mean_square = total[good] / count[good], square[good] / count[good]
+    np.testing.assert_array_equal(spread, np.maximum(mean_square - mean**2, 0))
+    assert 0 < between < 2 and problem.cost(np.eye(4), obs) > 0
+
+
+def test_a_wheel_carries_the_kernel_source() -> None:
+    pyproject = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())
+    patterns = pyproject["tool"]["setuptools"]["package-data"]["calib"]
+    package = photo_kernel.SOURCE.parents[1]
+    assert photo_kernel.SOURCE in {path for pattern in patterns for path in package.glob(pattern)}
