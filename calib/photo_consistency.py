@@ -251,10 +251,11 @@ class _Problem:
     def kernel_point_sums(
         self, extension: ModuleType, T: np.ndarray, obs: _Observations
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`point_sums` in one pass of the compiled ``extension`` (:mod:`calib.photo_kernel`):
-        4.4 -> 1.4 ms on two cores (2.3 ms on one) for the 214 000 observations of a 20-frame room.
-        Its bilinear samples are exact where OpenCV's are at 1/32 px, and its sums are added in
-        another order: the sums agree to ~1e-3, the cost to ~1e-6 (relative)."""
+        """:meth:`point_sums` in one pass of the compiled ``extension`` (:mod:`calib.photo_kernel`),
+        on one thread: for the 214 000 observations of a 20-frame room 4.4 -> 2.3 ms, and 16 ->
+        2.4 ms while another process keeps a core busy (NumPy's matrix product waits on OpenBLAS's
+        threads). Its bilinear samples are exact where OpenCV's are at 1/32 px, and its sums are
+        added in another order: the sums agree to ~1e-3, the cost to ~1e-6 (relative)."""
         import torch
 
         def tensor(a: np.ndarray, dtype: type) -> torch.Tensor:
