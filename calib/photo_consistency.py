@@ -264,7 +264,7 @@ class _Problem:
         (fx, _, cx), (_, fy, cy) = self.K[:2]
         runs = (tensor(r, np.int64) for r in (obs.run_starts, obs.run_lengths, obs.run_rows))
         sums = extension.point_sums(
-            tensor(self.images, np.float32), tensor(obs.xyz.T, np.float32), tensor(T[:3], np.float32),
+            tensor(self.images, np.float32), tensor(obs.xyz_rows, np.float32), tensor(T[:3], np.float32),
             float(fx), float(fy), float(cx), float(cy), self.height, *runs, tensor(obs.point, np.int64),
             obs.n_points,
         )  # fmt: skip
@@ -297,6 +297,9 @@ class _Observations:
         frames: np.ndarray,
     ) -> None:
         self.xyz, self.point, self.n_points = xyz, point, n_points
+        #: ``(M, 3)`` the same points row by row, for the compiled sums (a view of ``xyz``, whose
+        #: columns ``np.hstack`` lays out one after the other).
+        self.xyz_rows = np.ascontiguousarray(xyz.T)
         #: ``(M,)`` the first row of each observation's frame in the stacked images.
         self.row_offset = frames[row].astype(np.float32) * image_height
         #: The frames that see something, each a run of the flat arrays: first index and length
