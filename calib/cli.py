@@ -54,13 +54,15 @@ def _merge_into(base_path: Path | None, camera: Any = None, **updates: Any) -> A
     from rig.calibration import Calibration, load_calibration
 
     base = load_calibration(base_path) if base_path is not None and base_path.exists() else None
-    calibration = Calibration(camera if camera is not None else base.camera)
+    # Without a base the file holds what this step found: no extrinsic unless it found one.
+    calibration = Calibration(camera if camera is not None else base.camera, has_extrinsic=False)
     if base is not None:
         calibration.T_cam_lidar, calibration.time_offset_s = base.T_cam_lidar, base.time_offset_s
-        calibration.quality = dict(base.quality)
+        calibration.quality, calibration.has_extrinsic = dict(base.quality), base.has_extrinsic
     quality = updates.pop("quality", {})
     for name, value in updates.items():
         setattr(calibration, name, value)
+    calibration.has_extrinsic |= "T_cam_lidar" in updates
     calibration.quality.update(quality)
     return calibration
 
@@ -157,7 +159,7 @@ def extrinsic(
         raise InputError(
             f"{len(image)} --image but {len(points)} --points; give one cloud per image", field="--points"
         )
-    start = load_calibration(init)
+    start = load_calibration(init, needs_extrinsic=True)
     pairs = [read_pair(i, c) for i, c in zip(image, points, strict=True)]
     if board is None:
         result = refine_extrinsic(pairs, start.camera, start.T_cam_lidar)
@@ -251,8 +253,9 @@ def session_command(
     init: Path | None = typer.Option(
         None,
         "--init",
-        help="calib.yaml with a rough T_cam_lidar for the targetless extrinsic to start from; without "
-        "it, a bag's /tf_static transform between the image's and the point cloud's frames, else the "
+        help="calib.yaml with a rough T_cam_lidar for the targetless extrinsic to start from (or the "
+        "camera alone, as lts calibrate intrinsics writes it); without one, a bag's /tf_static "
+        "transform between the image's and the point cloud's frames, else the "
         "rotation that maps the LiDAR's angular velocity onto the camera's with a zero translation "
         "(needs a recording that turns; rough: 1.4-1.8 deg on the virtual room).",
     ),

@@ -248,12 +248,13 @@ def calibrate_session(
 ) -> tuple[Calibration, dict[str, Any]]:
     """Everything a recording supports: camera model, time offset and the extrinsic — from the
     chessboard ``board`` when given, else targetless — starting at a rough ``T_cam_lidar``:
-    ``init``'s, else the recording's ``/tf_static`` one, else :func:`motion_guess`. A time offset
-    or extrinsic whose verdict is not ``ok`` is reported but not applied (the calibration keeps
-    the rough one). ``progress`` is told each step as it starts. ``search_straight`` False skips
-    the targetless search of a straight drive, whose result is never applied (what a
-    reconstruction needs; the search's four axes are a diagnosis for ``lts calibrate``). Returns
-    the calibration and a report (``extrinsic_init`` says where the rough extrinsic came from)."""
+    ``init``'s (unless it holds the camera alone), else the recording's ``/tf_static`` one, else
+    :func:`motion_guess`. A time offset or extrinsic whose verdict is not ``ok`` is reported but
+    not applied (the calibration keeps the rough one). ``progress`` is told each step as it
+    starts. ``search_straight`` False skips the targetless search of a straight drive, whose
+    result is never applied (what a reconstruction needs; the search's four axes are a diagnosis
+    for ``lts calibrate``). Returns the calibration and a report (``extrinsic_init`` says where the
+    rough extrinsic came from, ``init_holds`` what ``init`` gave when not the extrinsic)."""
     recording = as_recording(path)
     data = load_session(recording, topics)
     camera = data.camera or (init.camera if init is not None else None)
@@ -264,19 +265,23 @@ def calibrate_session(
             field="camera_info",
         )
     report: dict[str, Any] = {"camera_source": "session CameraInfo" if data.camera else "initial calibration"}
-    if init is None and (tf := tf_extrinsic(recording, data.topics)) is not None:
-        init = Calibration(camera, tf.T_cam_lidar)
+    # The rough extrinsic: init's, unless it holds the camera alone (lts calibrate intrinsics).
+    guess = init if init is not None and init.has_extrinsic else None
+    if init is not None and guess is None:
+        report["init_holds"] = "the camera alone (no T_cam_lidar)"
+    if guess is None and (tf := tf_extrinsic(recording, data.topics)) is not None:
+        guess = Calibration(camera, tf.T_cam_lidar)
         report["extrinsic_init"] = tf.describe()
-    elif init is not None:
+    elif guess is not None:
         report["extrinsic_init"] = "--init"
-    if board is not None and init is None:
+    if board is not None and guess is None:
         raise InputError(
             "the board method needs a rough T_cam_lidar (--init) to find the board in the LiDAR clouds",
             path=data.path,
             field="--init",
         )
     calibration = Calibration(
-        camera, init.T_cam_lidar.copy() if init else np.eye(4), init.time_offset_s if init else 0.0
+        camera, guess.T_cam_lidar.copy() if guess else np.eye(4), init.time_offset_s if init else 0.0
     )
 
     tell = progress or (lambda step: None)
@@ -287,7 +292,7 @@ def calibrate_session(
     if time_result.verdict == "ok":
         calibration.time_offset_s = time_result.time_offset_s
 
-    T_init = init.T_cam_lidar if init is not None else motion_guess(time_result)
+    T_init = guess.T_cam_lidar if guess is not None else motion_guess(time_result)
     if T_init is None:
         report["extrinsic"] = {
             "verdict": "not run",
@@ -297,7 +302,7 @@ def calibrate_session(
             ],
         }
     else:
-        if init is None:
+        if guess is None:
             report["extrinsic_init"] = MOTION_GUESS
             calibration.T_cam_lidar = T_init.copy()
         tell(
@@ -306,7 +311,7 @@ def calibrate_session(
             else f"extrinsic: LiDAR map, then photo-consistency over {CONSISTENCY_FRAMES} frames (<1 min)"
         )
         # An offset given with --init is taken as given; one estimated here is as good as its interval.
-        trusted = init is not None and time_result.verdict != "ok"
+        trusted = guess is not None and time_result.verdict != "ok"
         offset_doubt = 0.0 if trusted else offset_error(time_result, calibration.time_offset_s)
         result = session_extrinsic(
             data, camera, calibration.time_offset_s, motion, T_init, board,
@@ -338,6 +343,8 @@ def report_lines(report: dict[str, Any]) -> list[str]:
             + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
             + (f" — not applied, {kept} is kept" if block.get("applied") is False else "")
         )
+    if "init_holds" in report:
+        lines.append(f"--init: {report['init_holds']}")
     if given is not None:
         lines.append(f"rough extrinsic: {given}")
     return lines

@@ -186,9 +186,12 @@ def check_options(o: ReconstructOptions) -> Recording:
             )
     from rig.calibration import load_calibration
 
-    for given in (o.calib, o.init):
-        if given is not None and str(given) != CALIB_FROM_RECORDING:
-            load_calibration(given)  # a bad file stops here, with its own error, before any stage
+    # A bad file stops here, with its own error, before any stage. A calibration used as it is
+    # needs an extrinsic; a starting one may hold the camera alone (the extrinsic is then found).
+    if o.calib is not None and str(o.calib) != CALIB_FROM_RECORDING:
+        load_calibration(o.calib, needs_extrinsic=True)
+    if o.init is not None:
+        load_calibration(o.init)
     return recording
 
 

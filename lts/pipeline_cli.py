@@ -87,8 +87,9 @@ def reconstruct_command(
     init: Path | None = typer.Option(
         None,
         "--init",
-        help="A rough calibration (e.g. the rig's CAD values) for lts calibrate session to refine; "
-        "without --calib and --init, a bag's /tf_static extrinsic is refined.",
+        help="A rough calibration (e.g. the rig's CAD values) for lts calibrate session to refine, or "
+        "the camera alone (lts calibrate intrinsics); without an extrinsic from it, a bag's /tf_static "
+        "one is refined, else one found from the motion.",
     ),
     slam: Path | None = typer.Option(
         None,

@@ -77,7 +77,7 @@ def calibration_option(calib: Path, recording: Recording, **topics: str | None) 
     """The calibration ``--calib`` names: a calib.yaml, or ``tf`` for the recording's own (its
     topics found as :func:`rig.session.find_topics` does, ``topics`` overriding roles)."""
     if str(calib) != CALIB_FROM_RECORDING:
-        return load_calibration(calib)
+        return load_calibration(calib, needs_extrinsic=True)
     from rig.session import find_topics
     from rig.session.tf_static import recording_calibration
 

@@ -32,6 +32,14 @@ def test_intrinsics_json_and_calib_yaml(real_data, tmp_path) -> None:
     calibration = load_calibration(out)
     np.testing.assert_allclose(calibration.camera.K, summary["K"])
     assert calibration.quality["intrinsics"]["rms_px"] == pytest.approx(summary["rms_px"])
+    assert not calibration.has_extrinsic  # the camera alone: no identity to mistake for a guess
+    (tmp_path / "scan.bin").write_bytes(np.zeros((10, 4), np.float32).tobytes())
+    result = _lts(
+        "calibrate", "extrinsic", "--image", images[0], "--points", tmp_path / "scan.bin",
+        "--init", out, "--out", tmp_path / "extrinsic.yaml",
+    )  # fmt: skip
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert f"{out}: T_cam_lidar: missing" in result.stderr
 
 
 def test_bad_input_is_one_line_error(tmp_path) -> None:

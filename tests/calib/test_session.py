@@ -166,16 +166,20 @@ def test_lidar_map_needs_two_sweeps() -> None:
 
 
 def test_session_without_a_guess_starts_from_the_motion(room_session: Path, tmp_path: Path) -> None:
-    """No --init and no /tf_static: the rough extrinsic is the rotation between the sensors'
-    angular velocities with a zero translation, and the report says so."""
+    """--init with the camera alone (as lts calibrate intrinsics writes it) and no /tf_static: the
+    rough extrinsic is the rotation between the sensors' angular velocities with a zero
+    translation, and the report says where each part came from."""
     from calib.session_calib import MOTION_GUESS
 
     truth = load_calibration(room_session / "ground_truth" / "calib.yaml")
+    camera_only = tmp_path / "cam.yaml"
+    save_calibration(Calibration(truth.camera, has_extrinsic=False), camera_only)
     out = tmp_path / "calib.yaml"
-    result = _lts("calibrate", room_session / "session.mcap", "--out", out, "--json")
+    result = _lts("calibrate", room_session / "session.mcap", "--init", camera_only, "--out", out, "--json")
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
     assert summary["extrinsic_init"] == MOTION_GUESS
+    assert summary["init_holds"] == "the camera alone (no T_cam_lidar)"
     extrinsic = summary["extrinsic"]
     translation_m, angle = distance_and_angle(np.asarray(extrinsic["T_cam_lidar"]), truth.T_cam_lidar)
     rotation_deg = np.degrees(angle)

@@ -86,6 +86,24 @@ def test_calibration_file_round_trip(tmp_path: Path) -> None:
     assert again.time_offset_s == 0.0125 and again.quality == {"rms_px": 0.21}
 
 
+def test_a_file_with_the_camera_alone_says_it_has_no_extrinsic(tmp_path: Path) -> None:
+    """``lts calibrate intrinsics`` writes the camera alone: no identity extrinsic to mistake for a
+    guess, and where one is needed the error names the field."""
+    camera_only = make_calibration()
+    camera_only.has_extrinsic = False
+    path = tmp_path / "cam.yaml"
+    save_calibration(camera_only, path)
+    assert "T_cam_lidar" not in yaml.safe_load(path.read_text())
+    again = load_calibration(path)
+    assert not again.has_extrinsic and again.time_offset_s == 0.0125
+    assert load_calibration(tmp_path / "cam.yaml").camera.width == 320
+    with pytest.raises(InputError) as info:
+        load_calibration(path, needs_extrinsic=True)
+    assert info.value.field == "T_cam_lidar" and str(info.value).startswith(f"{path}: T_cam_lidar: missing")
+    save_calibration(make_calibration(), path)
+    assert load_calibration(path, needs_extrinsic=True).has_extrinsic
+
+
 @pytest.mark.parametrize(
     ("edit", "field"),
     [
