@@ -311,7 +311,7 @@ def calibrate_session(
             else f"extrinsic: LiDAR map, then photo-consistency over {CONSISTENCY_FRAMES} frames (<1 min)"
         )
         # An offset given with --init is taken as given; one estimated here is as good as its interval.
-        trusted = guess is not None and time_result.verdict != "ok"
+        trusted = (init is not None or guess is not None) and time_result.verdict != "ok"
         offset_doubt = 0.0 if trusted else offset_error(time_result, calibration.time_offset_s)
         result = session_extrinsic(
             data, camera, calibration.time_offset_s, motion, T_init, board,
