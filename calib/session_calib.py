@@ -281,8 +281,9 @@ def calibrate_session(
             field="--init",
         )
     calibration = Calibration(
-        camera, guess.T_cam_lidar.copy() if guess else np.eye(4), init.time_offset_s if init else 0.0
-    )
+        camera, guess.T_cam_lidar.copy() if guess else np.eye(4), init.time_offset_s if init else 0.0,
+        has_extrinsic=guess is not None,
+    )  # fmt: skip
 
     tell = progress or (lambda step: None)
     tell("time offset from the motion")
@@ -304,7 +305,7 @@ def calibrate_session(
     else:
         if guess is None:
             report["extrinsic_init"] = MOTION_GUESS
-            calibration.T_cam_lidar = T_init.copy()
+            calibration.T_cam_lidar, calibration.has_extrinsic = T_init.copy(), True
         tell(
             "extrinsic from the board"
             if board is not None

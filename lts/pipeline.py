@@ -225,10 +225,14 @@ def calibrate(recording: Recording, init: Path | None, out: Path, log: Callable[
         progress=lambda step: log(f"  {step}"),
         search_straight=False,  # only an ok extrinsic is applied, and a straight drive's never is
     )
-    out.parent.mkdir(parents=True, exist_ok=True)
-    save_calibration(calibration, out)
     for line in report_lines(report):
         log(f"  {line}")
+    if not calibration.has_extrinsic:  # nothing to place the LiDAR in the images with
+        raise InputError(
+            "no LiDAR-to-camera extrinsic: " + "; ".join(report["extrinsic"]["reasons"]), field="--init"
+        )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    save_calibration(calibration, out)
 
 
 def import_slam(source: Path, out: Path, log: Callable[[str], None]) -> None:

@@ -220,6 +220,17 @@ def test_straight_drive_refuses_time_offset(room_session: Path, tmp_path: Path) 
     extrinsic = json.loads(result.stdout)["extrinsic"]
     assert extrinsic["verdict"] == "not run"
     assert "--init" in extrinsic["reasons"][0]
+    assert not load_calibration(tmp_path / "calib.yaml").has_extrinsic  # no identity written as if known
+    # Started from the camera alone, a reconstruction stops at its calibrate stage, saying why,
+    # instead of going on with an identity extrinsic.
+    camera_only = tmp_path / "cam.yaml"
+    save_calibration(
+        Calibration(load_calibration(tmp_path / "calib.yaml").camera, has_extrinsic=False), camera_only
+    )
+    result = _lts("reconstruct", run / "session.mcap", "--init", camera_only, "--out", tmp_path / "run")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "no LiDAR-to-camera extrinsic: no rough T_cam_lidar" in result.stderr
+    assert not (tmp_path / "run" / "calib.yaml").exists()
 
 
 def test_odometry_offset_within_2_ms(room_session: Path) -> None:
