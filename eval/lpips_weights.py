@@ -30,6 +30,7 @@ import torch
 
 from eval.lpips_net import LpipsAlex, combined_state, load_network, network_from_state, read_torch_file
 from rig.errors import InputError
+from rig.user_cache import cache_dir
 
 WEIGHTS_FILE = "lpips_alex.pt"
 #: The reason LPIPS is null when no weights are found.
@@ -68,7 +69,7 @@ LPIPS_HEADS = WeightSource(
 
 def cache_path() -> Path:
     """The weights file ``lts weights download`` writes and ``lts eval`` reads by default."""
-    return Path(os.environ.get("LTS_CACHE_DIR", Path.home() / ".cache" / "lidar-ts")) / WEIGHTS_FILE
+    return cache_dir() / WEIGHTS_FILE
 
 
 def torch_hub_alexnet() -> Path:

@@ -18,6 +18,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
+from rig.user_cache import cache_dir
+
 # -ffp-contract=off keeps a*x + b*y + d bit-identical to PyTorch's and NumPy's (no fused
 # multiply-add), so the kernels' decisions match their specifications exactly. -fopenmp:
 # at::parallel_for is inline and runs serially in code compiled without it (libgomp is the one
@@ -35,8 +37,8 @@ class NativeBuildError(RuntimeError):
 
 
 def extensions_dir() -> Path:
-    """Where built extensions live (``$LTS_CACHE_DIR/extensions``, default ``~/.cache/lidar-ts``)."""
-    return Path(os.environ.get("LTS_CACHE_DIR", Path.home() / ".cache" / "lidar-ts")) / "extensions"
+    """Where built extensions live: ``extensions/`` in :func:`rig.user_cache.cache_dir`."""
+    return cache_dir() / "extensions"
 
 
 def load_extension(
