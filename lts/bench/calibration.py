@@ -126,6 +126,9 @@ def _trial(
         "rotation_std_deg": result.rotation_std_deg,
         "translation_std_m": result.translation_std_m,
         "interval_95": result.interval_95,
+        # What the spread is made of, where the method says (the photo-consistency's jackknife and cost
+        # tolerance): a coverage can be told for each.
+        "std_parts": result.extra.get("std_parts"),
         "success": within,
         "false_ok": result.verdict == "ok" and not within,
         # A trial without an interval (axes kept from the guess: infinite spread) covers nothing.

@@ -6,6 +6,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from calib import photo_consistency
@@ -189,3 +190,45 @@ def test_the_last_descent_walks_a_flat_valley_and_keeps_the_better_end(monkeypat
     assert np.allclose(_descend_translations(problem, params, np.zeros(6)), lowest)
     start = lowest.copy()  # no step helps: the start comes back untouched
     assert _descend_translations(problem, params, start) is start
+
+
+class _Bowl:
+    """A stand-in problem of ten frames whose cost (of ``T_cam_lidar``, about the identity) is a
+    bowl of the given curvatures along (rotation degrees, translation decimetres); each frame's
+    own bowl sits ``frame_offsets[i]`` (in ``y``) from the others'."""
+
+    def __init__(self, curvature: np.ndarray, frame_offsets: np.ndarray, lowest: float = 0.02) -> None:
+        self.grays = [None] * len(frame_offsets)
+        self.curvature, self.offsets, self.lowest = curvature, frame_offsets, lowest
+
+    def observations(self, T: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        return frames
+
+    def cost(self, T: np.ndarray, frames: np.ndarray) -> float:
+        y = np.r_[Rotation.from_matrix(T[:3, :3]).as_rotvec(degrees=True), T[:3, 3] * 10]
+        per_frame = [0.5 * self.curvature @ (y - self.offsets[i]) ** 2 for i in frames]
+        return self.lowest + float(np.mean(per_frame))
+
+
+def test_the_spread_adds_how_far_the_cost_stays_within_its_tolerance() -> None:
+    """Frames that agree leave the jackknife nothing, but the cost's own error still moves its
+    minimum: the region where the cost rises by under COST_TOLERANCE is in the covariance, the
+    wider the flatter the cost, and no wider than the search's reach where it is flat."""
+    from calib.photo_consistency import COST_TOLERANCE, SEARCH_REACH, _covariance
+
+    curvature = np.array([0.04, 0.04, 0.01, 0.2, 0.05, 0.2])
+    params = _Parameters(np.eye(4), np.eye(6))
+    jackknife, tolerance = _covariance(_Bowl(curvature, np.zeros((10, 6))), params, np.zeros(6))
+    np.testing.assert_allclose(jackknife, 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.diag(tolerance), 2 * COST_TOLERANCE * 0.02 / curvature, rtol=1e-3)
+
+    flat = curvature.copy()
+    flat[4] = 0.0  # no rise along the camera's y
+    _, tolerance = _covariance(_Bowl(flat, np.zeros((10, 6))), params, np.zeros(6))
+    assert np.sqrt(tolerance[4, 4]) == pytest.approx(max(SEARCH_REACH), rel=1e-3)
+
+    # Frames whose own minima scatter along the x axis: the jackknife sees them.
+    scatter = np.zeros((10, 6))
+    scatter[:, 3] = np.random.default_rng(0).normal(0.0, 0.3, 10)
+    jackknife, _ = _covariance(_Bowl(curvature, scatter), params, np.zeros(6))
+    assert jackknife[3, 3] > 1e-3 and np.allclose(np.delete(np.diag(jackknife), 3), 0.0, atol=1e-9)
