@@ -12,11 +12,14 @@ from scipy.spatial.transform import Rotation
 from calib import photo_consistency
 from calib.lidar_map import LidarMap, _one_per_voxel
 from calib.photo_consistency import (
+    COST_TOLERANCE,
     MIN_POINTS,
     MIN_RISE,
     MIN_TURN_DEG,
     PROFILE_STEP_M,
+    SEARCH_REACH,
     ConsistencyFrame,
+    _covariance,
     _descend_translations,
     _flat_translations,
     _observable_basis,
@@ -214,8 +217,6 @@ def test_the_spread_adds_how_far_the_cost_stays_within_its_tolerance() -> None:
     """Frames that agree leave the jackknife nothing, but the cost's own error still moves its
     minimum: the region where the cost rises by under COST_TOLERANCE is in the covariance, the
     wider the flatter the cost, and no wider than the search's reach where it is flat."""
-    from calib.photo_consistency import COST_TOLERANCE, SEARCH_REACH, _covariance
-
     curvature = np.array([0.04, 0.04, 0.01, 0.2, 0.05, 0.2])
     params = _Parameters(np.eye(4), np.eye(6))
     jackknife, tolerance = _covariance(_Bowl(curvature, np.zeros((10, 6))), params, np.zeros(6))
