@@ -170,7 +170,15 @@ def bench_calib_command(
         help="Virtual-rig presets to simulate (repeat: --sim room --sim street); default room, none "
         "when --kitti-frames, --nuscenes-sample or --pjlab-pairs is given.",
     ),
-    seeds: int = typer.Option(3, "--seeds", min=1, help="Sessions per preset: seeds 0 to N-1."),
+    seeds: int = typer.Option(
+        3, "--seeds", min=1, help="Sessions per preset: seeds S to S+N-1 (S: --first-seed, 0 by default)."
+    ),
+    first_seed: int = typer.Option(
+        0,
+        "--first-seed",
+        min=0,
+        help="The first seed: e.g. sessions held out from a choice made on seeds 0 to S-1.",
+    ),
     guess: list[str] = typer.Option(
         None,
         "--guess",
@@ -222,7 +230,15 @@ def bench_calib_command(
     if pjlab_pairs is not None:
         pjlab_pair_names(pjlab_pairs)
     result = bench_calib(
-        sim, range(seeds), guesses, duration, out / "calib", _log, kitti_frames, nuscenes_sample, pjlab_pairs
+        sim,
+        range(first_seed, first_seed + seeds),
+        guesses,
+        duration,
+        out / "calib",
+        _log,
+        kitti_frames,
+        nuscenes_sample,
+        pjlab_pairs,
     )
     _print_calib(result)
     _finish(result, json_out)

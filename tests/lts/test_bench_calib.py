@@ -76,6 +76,7 @@ def test_bench_scores_each_guess_against_the_truth(tmp_path):
         (["--guess", "3x"], "--guess"),
         (["--sim", "rooom"], "preset"),
         (["--seeds", "0"], "--seeds"),
+        (["--first-seed", "-1"], "--first-seed"),
         (["--kitti-frames", "nowhere"], "nowhere"),
         (["--nuscenes-sample", "nowhere"], "nowhere"),
     ],
