@@ -15,8 +15,8 @@ the free translations, each step scored on the points visible where it lands
 (:func:`_descend_translations`). A straight drive leaves two axes unobserved; they are kept from
 the guess (:func:`_straight_travel`). Grey levels are standardised per frame (auto-exposure), and
 the worst :data:`TRIM` of the points (specular surfaces, points hidden by something the LiDAR
-missed) are left out of the mean. Uncertainty: a jackknife over stretches of frames plus the
-region where the cost stays within :data:`COST_TOLERANCE` of its lowest (:func:`_covariance`), and
+missed) are left out of the mean. Uncertainty: the larger of a jackknife over stretches of frames
+and the region where the cost stays within :data:`COST_TOLERANCE` of its lowest (:func:`_spread`), and
 a check that the result is a clear minimum along every free translation
 (:func:`_flat_translations`), which the jackknife cannot see.
 """
@@ -99,9 +99,10 @@ REMAP_LIMIT = 32767
 #: The cost's own error, relative: its minimum lies off the truth by about as far as the cost
 #: rises by this fraction from it, in a direction every stretch of frames shares (so the
 #: jackknife cannot see it). At the results of the virtual room and office (seeds 0-9) the
-#: truth cost 0.2-13 % more. The smallest value whose 95 % interval holds the truth in 90 % of
-#: each scene's trials over seeds 0-19 (the jackknife alone: room 46 of 50, office 22 of 46).
-COST_TOLERANCE = 0.004
+#: truth cost 0.2-13 % more. The smallest value (in steps of 0.1 %) whose 95 % interval holds
+#: the truth in 90 % of each scene's trials over seeds 0-19 (the jackknife alone: room 55 of 60,
+#: office 25 of 56).
+COST_TOLERANCE = 0.007
 #: Verdict limits on the standard deviations: the 95 % interval (2σ) within 0.5° / 5 cm.
 MAX_ROT_STD_DEG = 0.25
 MAX_TRANS_STD_M = 0.025
@@ -395,8 +396,8 @@ def _jackknife_groups(n_frames: int) -> int:
 
 def _covariance(problem: _Problem, params: _Parameters, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two covariances ``(6, 6)`` of the increment ``basis @ y`` (degrees, decimetres; nothing
-    along the axes the basis leaves out), to be added: how the frames disagree, and how far the
-    cost's own error may have moved its minimum.
+    along the axes the basis leaves out): how the frames disagree, and how far the cost's own
+    error may have moved its minimum (:func:`_spread` takes the larger).
 
     The first is a jackknife over :data:`JACKKNIFE_GROUPS` stretches of consecutive frames, each
     left out in turn. The estimate without a stretch is one Newton step from ``y``: the gradient
@@ -433,6 +434,17 @@ def _covariance(problem: _Problem, params: _Parameters, y: np.ndarray) -> tuple[
 def _axis_std(covariance: np.ndarray) -> np.ndarray:
     """Per-axis standard deviations ``(6,)`` of a covariance ``(6, 6)``."""
     return np.sqrt(np.maximum(np.diag(covariance), 0.0))
+
+
+def _spread(jackknife: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
+    """Per-axis standard deviations ``(6,)`` of the estimate from the jackknife's and the cost
+    tolerance's ``(6,)`` (degrees, decimetres): for the rotation and for the translation, the part
+    whose vector is the longer. Not their sum: the stretches' disagreement moves the cost's
+    minimum too, so it is part of what the tolerance covers (over the room's and the office's
+    seeds 0-19, the sum at the 0.5 % it needs there held the truth in 111 of 116 trials and left 31
+    results ``ok``; the larger at 0.7 %, 112 and 35)."""
+    rotation = max(jackknife[:3], tolerance[:3], key=np.linalg.norm)
+    return np.concatenate([rotation, max(jackknife[3:], tolerance[3:], key=np.linalg.norm)])
 
 
 def _rotation_translation_std(std: np.ndarray) -> tuple[float, float]:
@@ -667,11 +679,10 @@ def photo_consistency_extrinsic(
     T_best = params.pose(y)
     obs = problem.observations(T_best, every)
     cost_init, cost_final = problem.cost(T_init, obs), problem.cost(T_best, obs)
-    jackknife, tolerance = _covariance(problem, params, y)
-    std = _axis_std(jackknife + tolerance)
+    jackknife, tolerance = (_axis_std(c) for c in _covariance(problem, params, y))
+    std = _spread(jackknife, tolerance)
     rot_std, trans_std = _rotation_translation_std(std)
-    frames_std = _rotation_translation_std(_axis_std(jackknife))
-    flat_std = _rotation_translation_std(_axis_std(tolerance))
+    frames_std, flat_std = _rotation_translation_std(jackknife), _rotation_translation_std(tolerance)
     interval_95 = jackknife_interval_95(_jackknife_groups(len(frames)))
     reasons = []
     if travel_cam is not None:
@@ -697,15 +708,15 @@ def photo_consistency_extrinsic(
         y = np.zeros_like(y)
     if np.isfinite(rot_std) and rot_std > MAX_ROT_STD_DEG:
         reasons.append(
-            f"rotation uncertain by ±{rot_std:.2f}° (1σ; limit {MAX_ROT_STD_DEG}°): ±{frames_std[0]:.2f}° "
-            f"between stretches of frames, ±{flat_std[0]:.2f}° where the cost stays within "
-            f"{COST_TOLERANCE:.1%} of its lowest"
+            f"rotation uncertain by ±{rot_std:.2f}° (1σ; limit {MAX_ROT_STD_DEG}°), the larger of "
+            f"±{frames_std[0]:.2f}° between stretches of frames and ±{flat_std[0]:.2f}° where the cost "
+            f"stays within {COST_TOLERANCE:.1%} of its lowest"
         )
     if np.isfinite(trans_std) and trans_std > MAX_TRANS_STD_M:
         reasons.append(
             f"translation uncertain by ±{trans_std * 100:.1f} cm (1σ; limit {MAX_TRANS_STD_M * 100:.1f} "
-            f"cm): ±{frames_std[1] * 100:.1f} cm between stretches of frames, ±{flat_std[1] * 100:.1f} "
-            f"cm where the cost stays within {COST_TOLERANCE:.1%} of its lowest"
+            f"cm), the larger of ±{frames_std[1] * 100:.1f} cm between stretches of frames and "
+            f"±{flat_std[1] * 100:.1f} cm where the cost stays within {COST_TOLERANCE:.1%} of its lowest"
         )
     extra = {
         "photo_consistency": {"init": cost_init, "final": cost_final},

@@ -25,6 +25,7 @@ from calib.photo_consistency import (
     _observable_basis,
     _Parameters,
     _Problem,
+    _spread,
     _straight_travel,
 )
 from rig.camera import CameraModel
@@ -233,3 +234,10 @@ def test_the_spread_adds_how_far_the_cost_stays_within_its_tolerance() -> None:
     scatter[:, 3] = np.random.default_rng(0).normal(0.0, 0.3, 10)
     jackknife, _ = _covariance(_Bowl(curvature, scatter), params, np.zeros(6))
     assert jackknife[3, 3] > 1e-3 and np.allclose(np.delete(np.diag(jackknife), 3), 0.0, atol=1e-9)
+
+
+def test_the_spread_is_the_larger_part_for_the_rotation_and_for_the_translation() -> None:
+    jackknife = np.array([0.3, 0.0, 0.0, 0.1, 0.1, 0.0])  # stretches disagree in rotation
+    tolerance = np.array([0.1, 0.1, 0.1, 0.0, 0.3, 0.0])  # the cost is flat along one translation
+    np.testing.assert_array_equal(_spread(jackknife, tolerance), [0.3, 0.0, 0.0, 0.0, 0.3, 0.0])
+    np.testing.assert_array_equal(_spread(tolerance, jackknife), [0.3, 0.0, 0.0, 0.0, 0.3, 0.0])
