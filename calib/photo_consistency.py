@@ -103,7 +103,7 @@ REMAP_LIMIT = 32767
 #: the truth in 90 % of each scene's trials over seeds 0-19 (the jackknife alone: room 55 of 60,
 #: office 25 of 56).
 COST_TOLERANCE = 0.007
-#: Verdict limits on the standard deviations: the 95 % interval (2σ) within 0.5° / 5 cm.
+#: Verdict limits on the standard deviations: half of 0.5° / 5 cm (the 95 % interval is 2.78σ).
 MAX_ROT_STD_DEG = 0.25
 MAX_TRANS_STD_M = 0.025
 METHOD = "targetless (photo-consistency of the LiDAR map over {} frames)"
