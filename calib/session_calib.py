@@ -9,6 +9,7 @@ Ouster and the virtual rig carry it in the LiDAR), otherwise KISS-ICP odometry.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -328,6 +329,21 @@ def calibrate_session(
     return calibration, report
 
 
+def _interval_text(block: dict[str, Any]) -> str:
+    """`` ±… (95 %)`` for a report step's estimate where it gives a finite interval: the time
+    offset's in milliseconds, the extrinsic's in degrees and centimetres."""
+
+    def finite(key: str) -> bool:
+        return isinstance(block.get(key), float | int) and math.isfinite(block[key])
+
+    if finite("interval_95_s"):
+        return f" ±{block['interval_95_s'] * 1e3:.1f} ms (95 %)"
+    if finite("rotation_interval_95_deg") and finite("translation_interval_95_m"):
+        rotation, translation = block["rotation_interval_95_deg"], block["translation_interval_95_m"]
+        return f" ±{rotation:.2f}° ±{translation * 100:.1f} cm (95 %)"
+    return ""
+
+
 def report_lines(report: dict[str, Any]) -> list[str]:
     """One line per step of a :func:`calibrate_session` report: its verdict, the reasons, and
     whether the result was applied; after them, where the rough extrinsic came from."""
@@ -341,6 +357,7 @@ def report_lines(report: dict[str, Any]) -> list[str]:
             kept = "the value from --init" if given == "--init" else "0 s"
         lines.append(
             f"{step}: {block['verdict']}"
+            + _interval_text(block)
             + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
             + (f" — not applied, {kept} is kept" if block.get("applied") is False else "")
         )
