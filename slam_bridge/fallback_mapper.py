@@ -1,33 +1,26 @@
 """The built-in mapper for sessions that come without SLAM output.
 
-LiDAR odometry (scan-to-map VGICP, :class:`rig.lidar_odometry.SweepOdometry`) on the raw sweeps,
-each pose stamped at its sweep's information-weighted point time, then a coarse surface
-by TSDF integration of the scans de-skewed with that trajectory (open3d). Open3D integrates depth
+LiDAR odometry on the sweeps, registered twice (:mod:`rig.sweep_registration`: scan-to-map VGICP
+on the raw sweeps, then on the de-skewed static points), then a coarse surface by TSDF
+integration of the de-skewed static points at their poses (open3d). Open3D integrates depth
 *images*, so each scan is z-buffered into the six faces of a cube map around the LiDAR and those
 are integrated.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
-from rig.deskew import deskewed_points
-from rig.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
 from rig.errors import InputError
-from rig.lidar_odometry import (
-    MAP_VOXELS_PER_VOXEL,
-    SweepOdometry,
-    nearest_rotation,
-    usable_sweep,
-    voxel_for_ranges,
-)
+from rig.lidar_odometry import MAP_VOXELS_PER_VOXEL
 from rig.messages import Scan
+from rig.sweep_registration import RegistrationLog, SweepSettings, registered_sweeps
 from rig.trajectory import Trajectory
-from rig.transforms import invert, make_transform, transform_points
+from rig.transforms import invert, make_transform
 from slam_bridge.mapping_quality import MappingQuality, judge_mapping
 
 # Rotations R_face_sensor of the six cube-map cameras: rows are the camera's x (right), y (down) and
@@ -53,34 +46,21 @@ MIN_TSDF_VOXEL_M = 0.04
 
 
 @dataclass(frozen=True)
-class MapperConfig:
-    """Settings of the fallback mapper.
+class MapperConfig(SweepSettings):
+    """Settings of the fallback mapper: those of its registration
+    (:class:`~rig.sweep_registration.SweepSettings`; its ``dynamic`` test also keeps moving
+    objects out of the mesh), and
 
     Attributes:
-        voxel_size_m: the odometry's voxel size; None picks it from the ranges (:func:`odometry_voxel`).
         tsdf_voxel_m: TSDF voxel size (the mesh resolution); None picks it from the ranges
             (:func:`tsdf_voxel`).
         face_resolution_px: pixels across each 90° cube-map face (angular resolution of integration).
-        min_range_m, max_range_m: points outside are ignored.
         min_weight: voxels observed fewer times are left out of the mesh (removes one-off noise).
-        dynamic: the see-through test that keeps moving objects out of the mesh (None: off).
-        max_points_per_sweep: larger sweeps are thinned (:func:`~rig.lidar_odometry.thinned`)
-            before anything else:
-            every step costs in proportion to the points, and a 64-beam sweep has 4 to 5 times
-            more than its registration and see-through test need. It costs the mesh detail: on 78
-            sweeps of the virtual street with the HDL-64E's 125k points, the mapper takes 4.6 /
-            7.9 / 11.5 s with 32k / 64k / all points, ATE 0.93 / 0.83 / 0.78 cm, and 56 / 69 /
-            72 % of the mesh lies within 5 cm of the truth (85–88 % within 10 cm with any).
     """
 
-    voxel_size_m: float | None = None
     tsdf_voxel_m: float | None = None
     face_resolution_px: int = 64
-    min_range_m: float = 0.2
-    max_range_m: float = 60.0
     min_weight: float = 3.0
-    dynamic: DynamicConfig | None = DEFAULT_DYNAMIC
-    max_points_per_sweep: int = 32_000
 
 
 @dataclass
@@ -93,15 +73,6 @@ class MapperResult:
     scans_used: int
     quality: MappingQuality
     settings: dict[str, float | int | bool]
-
-
-def odometry_voxel(ranges: np.ndarray, config: MapperConfig) -> float:
-    """The odometry's voxel size (each sweep is downsampled to it) for sweeps whose first usable
-    ranges are ``ranges`` ``(N,)`` (m): ``config.voxel_size_m``, else
-    :func:`~rig.lidar_odometry.voxel_for_ranges`."""
-    if config.voxel_size_m is not None:
-        return config.voxel_size_m
-    return voxel_for_ranges(ranges)
 
 
 def tsdf_voxel(ranges: np.ndarray, config: MapperConfig) -> float:
@@ -150,7 +121,7 @@ class _TsdfIntegrator:
 
         o3c = o3d.core
         self._o3d, self._o3c = o3d, o3c
-        self.config = config
+        self.config, self.voxel_m = config, voxel_m
         res = config.face_resolution_px
         self.grid = o3d.t.geometry.VoxelBlockGrid(
             attr_names=("tsdf", "weight", "color"),
@@ -241,31 +212,21 @@ def run_mapper(
     """Odometry and a TSDF mesh from LiDAR scans (in time order).
 
     Poses are ``T_world_lidar`` with the world = the LiDAR frame of the first scan, stamped on the
-    scans' host clock when each holds (:func:`~rig.lidar_odometry.sweep_information`). A scan is
-    de-skewed once the next one's pose is known (with the poses before, at and after it) and its
-    moving points are found once the sweeps it is compared with are in
-    (:func:`~rig.dynamic_points.label_dynamic`). Its static points are then registered
-    again, by a second odometry that never sees a moving point, and integrated at that pose; the
-    difference between the two trajectories goes into the :class:`MappingQuality`.
+    scans' host clock when each holds. Each sweep is registered twice
+    (:func:`~rig.sweep_registration.registered_sweeps`: the second time de-skewed and without its
+    moving points) and its static points integrated at the second pose; the difference between
+    the two trajectories goes into the :class:`MappingQuality`.
     """
     tsdf: _TsdfIntegrator | None = None  # made once the first sweep has set its voxel size
-    log = _OdometryLog()
-    static_odometry: SweepOdometry | None = None
+    log = RegistrationLog()
     static_poses: list[np.ndarray] = []
     counts = {"points": 0, "dynamic": 0}
-    for _, view, dynamic in label_dynamic(_deskewed_sweeps(scans, config, log, progress), config.dynamic):
-        counts["points"] += len(dynamic)
-        counts["dynamic"] += int(dynamic.sum())
-        pose = view.T_world_sensor
-        sensor = transform_points(invert(pose), view.points_world)
-        static = sensor[~dynamic]
-        if config.dynamic is not None:
-            if static_odometry is None:
-                static_odometry = SweepOdometry(log.voxel_m, config.max_range_m, config.min_range_m)
-            pose = static_odometry.register_rigid(static if len(static) >= 100 else sensor)
-        static_poses.append(pose)
-        tsdf = tsdf or _TsdfIntegrator(config, log.tsdf_voxel_m)
-        tsdf.integrate(static, pose)
+    for sweep in registered_sweeps(scans, config, log, progress):
+        counts["points"] += len(sweep.dynamic)
+        counts["dynamic"] += int(sweep.dynamic.sum())
+        static_poses.append(sweep.pose)
+        tsdf = tsdf or _TsdfIntegrator(config, tsdf_voxel(log.first_ranges, config))
+        tsdf.integrate(sweep.points[~sweep.dynamic], sweep.pose)
     if tsdf is None or len(log.poses) < 2:
         raise InputError(
             f"only {len(log.poses)} usable LiDAR scans; the mapper needs at least 2", field="scans"
@@ -273,7 +234,7 @@ def run_mapper(
     poses = np.stack(static_poses)
     trajectory = Trajectory.from_poses(np.array(log.t_ns, dtype=np.int64), poses)
     dynamic_fraction = counts["dynamic"] / max(counts["points"], 1)
-    written = static_odometry or log.odometry  # the registration whose poses are written
+    written = log.static_odometry or log.odometry  # the registration whose poses are written
     quality = judge_mapping(
         np.stack(log.poses)[:, :3, 3], poses[:, :3, 3], dynamic_fraction, np.array(log.weakest_information),
         np.einsum("nij,nj->ni", poses[:, :3, :3], np.array(log.weakest_direction)),
@@ -281,87 +242,7 @@ def run_mapper(
     )  # fmt: skip
     settings = {
         "voxel_m": log.voxel_m, "map_voxel_m": MAP_VOXELS_PER_VOXEL * log.voxel_m,
-        "max_range_m": config.max_range_m, "tsdf_voxel_m": log.tsdf_voxel_m,
+        "max_range_m": config.max_range_m, "tsdf_voxel_m": tsdf.voxel_m,
         "static_reregistration": config.dynamic is not None,
     }  # fmt: skip
     return MapperResult(trajectory, tsdf.mesh(), len(poses), quality, settings)
-
-
-@dataclass
-class _OdometryLog:
-    """Per registered sweep: its stamp (ns), pose, smallest translation information and its
-    direction (sensor frame); the voxel sizes chosen (odometry, TSDF) and the odometry."""
-
-    voxel_m: float = 0.0
-    tsdf_voxel_m: float = 0.0
-    odometry: SweepOdometry | None = None
-    t_ns: list[int] = field(default_factory=list)
-    poses: list[np.ndarray] = field(default_factory=list)
-    weakest_information: list[float] = field(default_factory=list)
-    weakest_direction: list[np.ndarray] = field(default_factory=list)
-
-
-def _deskewed_sweeps(
-    scans: Iterable[Scan],
-    config: MapperConfig,
-    log: _OdometryLog,
-    progress: Callable[[int], None] | None,
-) -> Iterator[tuple[float, np.ndarray, np.ndarray]]:
-    """Register each usable scan (recording it in ``log``) and yield the one before it de-skewed:
-    ``(t_s, points (N, 3) in the sensor frame, T_world_sensor)``."""
-    pending: tuple[np.ndarray, np.ndarray] | None = None  # the last scan's points and their times (ns)
-    t_ns, poses = log.t_ns, log.poses
-
-    def deskew_pending(pose_index: int) -> tuple[float, np.ndarray, np.ndarray]:
-        recent = extended_at_both_ends(np.array(t_ns[-3:], dtype=np.int64), np.stack(poses[-3:]))
-        points, point_t_ns = pending
-        pose = poses[pose_index]
-        return (
-            t_ns[pose_index] * 1e-9,
-            transform_points(invert(pose), deskewed_points(points, point_t_ns, recent)),
-            pose,
-        )
-
-    for index, scan in enumerate(scans):
-        sweep = usable_sweep(
-            scan.points,
-            scan.point_time_s,
-            config.max_points_per_sweep,
-            config.min_range_m,
-            config.max_range_m,
-        )
-        if sweep is None:
-            continue
-        points, times, ranges = sweep
-        if log.odometry is None:
-            log.voxel_m = odometry_voxel(ranges, config)
-            log.tsdf_voxel_m = tsdf_voxel(ranges, config)
-            log.odometry = SweepOdometry(log.voxel_m, config.max_range_m, config.min_range_m)
-        pose, information = log.odometry.register(points, times)
-        t_ns.append(int(scan.t_host) + round(information.held_s * 1e9))
-        poses.append(pose)
-        log.weakest_information.append(float(information.translation_information[0]))
-        log.weakest_direction.append(information.weakest_direction)
-        if pending is not None:
-            yield deskew_pending(-2)
-        pending = (points, int(scan.t_host) + np.round(times * 1e9).astype(np.int64))
-        if progress is not None:
-            progress(index)
-    if len(poses) >= 2:
-        yield deskew_pending(-1)
-
-
-def extended_at_both_ends(t_ns: np.ndarray, poses: np.ndarray) -> Trajectory:
-    """The trajectory of poses ``(K, 4, 4)`` at ``t_ns`` ``(K,)`` (K ≥ 2) with one more pose at each
-    end, the motion of the end pair repeated: the first and last sweeps reach beyond the poses
-    around them, and holding the end pose there left them half de-skewed (at 3 m/s the second
-    registration's first step came out 7 cm short, as its map began with that sweep)."""
-    before = nearest_rotation(poses[0] @ invert(poses[1]) @ poses[0])
-    after = nearest_rotation(poses[-1] @ invert(poses[-2]) @ poses[-1])
-    times = np.concatenate([[2 * t_ns[0] - t_ns[1]], t_ns, [2 * t_ns[-1] - t_ns[-2]]])
-    return Trajectory.from_poses(times.astype(np.int64), np.concatenate([[before], poses, [after]]))
-
-
-def world_points(scan_points: np.ndarray, pose: np.ndarray) -> np.ndarray:
-    """Scan points ``(N, 3)`` in the world frame given the scan's pose ``(4, 4)``."""
-    return transform_points(pose, scan_points)

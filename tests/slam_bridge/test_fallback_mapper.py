@@ -16,7 +16,6 @@ from rig.trajectory_io import read_tum
 from slam_bridge.fallback_mapper import (
     canonical_order,
     cube_depth_images,
-    extended_at_both_ends,
     fill_small_holes,
     run_mapper,
 )
@@ -134,19 +133,3 @@ def test_an_empty_mesh_is_said_in_the_summary() -> None:
     )
     assert "the mesh is empty" in summary.describe()[-1]
     assert not any("empty" in line for line in MapSummary(**{**summary.__dict__, "faces": 10}).describe())
-
-
-def test_first_and_last_sweeps_are_de_skewed_with_the_motion_repeated() -> None:
-    """A LiDAR moving 0.3 m and turning 2° per 0.1 s: beyond the end poses the trajectory goes on
-    at that rate instead of standing still (a sweep reaches past the poses around it)."""
-    from scipy.spatial.transform import Rotation
-
-    from rig.transforms import make_transform
-
-    turn = Rotation.from_euler("z", 2, degrees=True).as_matrix()
-    poses = np.stack([make_transform(np.eye(3), [0, 0, 0]), make_transform(turn, [0.3, 0, 0])])
-    trajectory = extended_at_both_ends(np.array([0, 100_000_000]), poses)
-    before, after = trajectory.interpolate(np.array([-50_000_000, 150_000_000]))
-    np.testing.assert_allclose(before[:3, 3], [-0.15, 0, 0], atol=0.01)
-    np.testing.assert_allclose(after[:3, 3], [0.45, 0, 0], atol=0.01)
-    assert np.degrees(Rotation.from_matrix(after[:3, :3]).as_euler("xyz")[2]) == pytest.approx(3.0, abs=1e-6)
