@@ -1,12 +1,12 @@
 """The LiDAR map of a whole recording, for the multi-frame extrinsic: where the LiDAR was at every
 moment, and the points of all its sweeps in one world frame.
 
-The trajectory is the fallback mapper's odometry (scan-to-map VGICP on the raw sweeps, each pose
-stamped when it holds, :class:`rig.lidar_odometry.SweepOdometry`); the sweeps are then de-skewed
-with it, the points of moving things (that other sweeps see through, :mod:`rig.dynamic_points`)
-set apart, and the rest merged, one point per voxel. Calibration cannot wait for the mapper (it
-runs before it, and ``rig`` → ``calib`` → ``slam_bridge``), but the odometry, the thinning and
-the test for moving points are the same code.
+The sweeps are registered as the fallback mapper registers them
+(:func:`rig.sweep_registration.registered_sweeps`: odometry on the raw sweeps, then the
+de-skewed static points again), the points of moving things (that other sweeps see through,
+:mod:`rig.dynamic_points`) set apart, and the rest merged, one point per voxel. Calibration cannot
+wait for the mapper (it runs before it, and ``rig`` → ``calib`` → ``slam_bridge``), but the
+registration, the thinning and the test for moving points are the same code.
 """
 
 from __future__ import annotations
@@ -16,17 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rig.deskew import deskewed_sweep
-from rig.dynamic_points import DEFAULT_DYNAMIC, label_dynamic
 from rig.errors import InputError
-from rig.lidar_odometry import SweepOdometry, thinned, usable_sweep, voxel_for_ranges
+from rig.lidar_odometry import thinned
 from rig.messages import Scan
+from rig.sweep_registration import RegistrationLog, SweepSettings, registered_sweeps
 from rig.trajectory import Trajectory
+from rig.transforms import transform_points
 
-#: Sweeps are thinned to this many points before anything else (the mapper's default).
-POINTS_PER_SWEEP = 32_000
-MIN_RANGE_M = 0.2
-MAX_RANGE_M = 60.0
 #: The map keeps one point per voxel of this fraction of the odometry voxel (3.3 cm in the
 #: virtual room, 12 cm on the 64-beam street), then at most MAP_POINTS of them, spread evenly.
 MAP_VOXEL_PER_ODOMETRY_VOXEL = 1 / 3
@@ -61,49 +57,27 @@ class LidarMap:
 
 
 def build_lidar_map(scans: Sequence[Scan]) -> LidarMap:
-    """Register every sweep (in time order), then merge them de-skewed into one map. Raises
+    """Register every sweep (in time order) and merge them de-skewed into one map. Raises
     :class:`~rig.errors.InputError` with fewer than 2 usable sweeps."""
-    used = [
-        (scan, sweep[:2])
-        for scan in scans
-        if (sweep := usable_sweep(scan.points, scan.point_time_s, POINTS_PER_SWEEP, MIN_RANGE_M, MAX_RANGE_M))
-        is not None
-    ]
-    if len(used) < 2:
-        raise InputError(f"only {len(used)} usable LiDAR sweeps; the LiDAR map needs 2", field="scans")
-    voxel = voxel_for_ranges(np.linalg.norm(used[0][1][0], axis=1))
-    odometry = SweepOdometry(voxel, MAX_RANGE_M, MIN_RANGE_M)
-    t_ns, poses = [], []
-    for scan, (points, times) in used:
-        pose, information = odometry.register(points, times)
-        t_ns.append(int(scan.t_host) + round(information.held_s * 1e9))
-        poses.append(pose)
-    trajectory = Trajectory.from_poses(np.array(t_ns, dtype=np.int64), np.stack(poses))
-
-    de_skewed = (
-        deskewed_sweep(points, _point_t_ns(scan, times), int(scan.t_host), trajectory)
-        for scan, (points, times) in used
-    )
-    map_voxel = voxel * MAP_VOXEL_PER_ODOMETRY_VOXEL
-    still, moving, moving_t_ns = [], [], []
-    for index, view, dynamic in label_dynamic(de_skewed, DEFAULT_DYNAMIC):
-        scan, (_, times) = used[index]
-        kept = view.points_world[~dynamic]
-        still.append(kept[_one_per_voxel(kept, map_voxel)])
-        moving.append(view.points_world[dynamic])
-        moving_t_ns.append(_point_t_ns(scan, times[dynamic]))
+    log = RegistrationLog()
+    poses, still, moving, moving_t_ns = [], [], [], []
+    for sweep in registered_sweeps(scans, SweepSettings(), log):
+        world = transform_points(sweep.pose, sweep.points)
+        kept = world[~sweep.dynamic]
+        still.append(kept[_one_per_voxel(kept, log.voxel_m * MAP_VOXEL_PER_ODOMETRY_VOXEL)])
+        moving.append(world[sweep.dynamic])
+        moving_t_ns.append(sweep.point_t_ns[sweep.dynamic])
+        poses.append(sweep.pose)
+    if len(poses) < 2:
+        raise InputError(f"only {len(log.poses)} usable LiDAR sweeps; the LiDAR map needs 2", field="scans")
+    trajectory = Trajectory.from_poses(np.array(log.t_ns, dtype=np.int64), np.stack(poses))
     points = np.vstack(still)
-    points = points[_one_per_voxel(points, map_voxel)]
+    points = points[_one_per_voxel(points, log.voxel_m * MAP_VOXEL_PER_ODOMETRY_VOXEL)]
     moving_t = np.concatenate(moving_t_ns)
     order = np.argsort(moving_t, kind="stable")
     return LidarMap(
         trajectory, points[thinned(len(points), MAP_POINTS)], np.vstack(moving)[order], moving_t[order]
     )
-
-
-def _point_t_ns(scan: Scan, times: np.ndarray) -> np.ndarray:
-    """Host-clock times ``(N,)`` int64 of a sweep's points from their offsets ``times`` (s)."""
-    return int(scan.t_host) + np.round(times * 1e9).astype(np.int64)
 
 
 def _one_per_voxel(points: np.ndarray, voxel: float) -> np.ndarray:
