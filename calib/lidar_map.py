@@ -62,9 +62,10 @@ def build_lidar_map(scans: Sequence[Scan]) -> LidarMap:
     log = RegistrationLog()
     poses, still, moving, moving_t_ns = [], [], [], []
     for sweep in registered_sweeps(scans, SweepSettings(), log):
+        map_voxel = log.voxel_m * MAP_VOXEL_PER_ODOMETRY_VOXEL
         world = transform_points(sweep.pose, sweep.points)
         kept = world[~sweep.dynamic]
-        still.append(kept[_one_per_voxel(kept, log.voxel_m * MAP_VOXEL_PER_ODOMETRY_VOXEL)])
+        still.append(kept[_one_per_voxel(kept, map_voxel)])
         moving.append(world[sweep.dynamic])
         moving_t_ns.append(sweep.point_t_ns[sweep.dynamic])
         poses.append(sweep.pose)
@@ -72,7 +73,7 @@ def build_lidar_map(scans: Sequence[Scan]) -> LidarMap:
         raise InputError(f"only {len(log.poses)} usable LiDAR sweeps; the LiDAR map needs 2", field="scans")
     trajectory = Trajectory.from_poses(np.array(log.t_ns, dtype=np.int64), np.stack(poses))
     points = np.vstack(still)
-    points = points[_one_per_voxel(points, log.voxel_m * MAP_VOXEL_PER_ODOMETRY_VOXEL)]
+    points = points[_one_per_voxel(points, map_voxel)]
     moving_t = np.concatenate(moving_t_ns)
     order = np.argsort(moving_t, kind="stable")
     return LidarMap(
