@@ -9,8 +9,8 @@ from rig.trajectory import Trajectory
 
 
 def test_the_second_registration_follows_the_truth_closer_than_the_first(quick_room: Path) -> None:
-    """The quick room's 30 sweeps: registered again de-skewed, the poses
-    lie nearer the truth (ATE after alignment), and each sweep comes with its points' times."""
+    """The quick room's 30 sweeps, registered again de-skewed: the poses lie nearer the truth (ATE
+    after alignment), and each sweep comes with its points' times."""
     from eval.trajectory_metrics import absolute_trajectory_error
     from rig.trajectory_io import read_tum
 
