@@ -13,12 +13,15 @@ each seeing the map points visible (z-buffer of the map and the frame's moving t
 then a scan along each axis for a deeper minimum (:func:`_out_of_the_valley`) and a descent along
 the free translations, each step scored on the points visible where it lands
 (:func:`_descend_translations`). A straight drive leaves two axes unobserved; they are kept from
-the guess (:func:`_straight_travel`). Grey levels are standardised per frame (auto-exposure), and
-the worst :data:`TRIM` of the points (specular surfaces, points hidden by something the LiDAR
-missed) are left out of the mean. Uncertainty: the larger of a jackknife over stretches of frames
-and the region where the cost stays within :data:`COST_TOLERANCE` of its lowest (:func:`_spread`), and
-a check that the result is a clear minimum along every free translation
-(:func:`_flat_translations`), which the jackknife cannot see.
+the guess (:func:`_straight_travel`). Where the time offset that placed the frames may be off,
+it is a seventh coefficient of every search: each frame is placed again along the map's
+trajectory, its points moved by the change of its pose (:meth:`_Observations.transforms`).
+Grey levels are standardised per frame (auto-exposure), and the worst :data:`TRIM` of the points
+(specular surfaces, points hidden by something the LiDAR missed) are left out of the mean.
+Uncertainty: the larger of a jackknife over stretches of frames and the region where the cost
+stays within :data:`COST_TOLERANCE` of its lowest (:func:`_spread`), and a check that the result
+is a clear minimum along every free translation (:func:`_flat_translations`), which the
+jackknife cannot see.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from calib.photo_kernel import photo_extension
 from calib.targetless import ExtrinsicResult, apply_increment, working_image, working_pixels
 from rig.camera import CameraModel
 from rig.errors import InputError
+from rig.trajectory import Trajectory
 from rig.transforms import invert, transform_points
 
 #: Gaussian blurs (pixels at the working width, 960) of the coarse-to-fine stages: the first
@@ -88,9 +92,9 @@ VALLEY_STEPS = 6
 #: The last descent along the free translations on the points visible where each step lands
 #: (:func:`_descend_translations`): its steps, metres.
 DESCENT_STEPS_M = (0.1, 0.05, 0.025)
-#: Finite-difference steps (degrees, decimetres) and the stretches of frames of the jackknife:
+#: Finite-difference steps (degrees, decimetres, TIME_UNIT_S) and the stretches of frames of the jackknife:
 #: at 0.05° / 5 mm the cost's curvature was mostly noise (a near-zero eigenvalue on the room).
-STEP = (0.15, 0.15)
+STEP = (0.15, 0.15, 0.15)
 JACKKNIFE_GROUPS = 5
 MIN_FRAMES = 4
 MIN_POINTS = 2000
@@ -103,6 +107,12 @@ REMAP_LIMIT = 32767
 #: (room 60 of 60, office 51 of 56; the jackknife alone 41 and 36). It was 0.7 % while the LiDAR
 #: map's odometry placed the office's frames 8-11 mm off (``rig.sweep_registration``).
 COST_TOLERANCE = 0.004
+#: The time offset searched with the extrinsic, where it may be off: a time offset moves every
+#: frame along its motion, which the cost sees (the virtual office's hand-held rig turns up to
+#: 37°/s: at the true extrinsic 2.5 ms cost 1-4 % more, and the lowest lay on the true offset).
+#: Its coefficient counts TIME_UNIT_S (1 is about 0.4° of the office's fastest turn, as the
+#: rotation's coefficient counts degrees).
+TIME_UNIT_S = 0.01
 #: Verdict limits on the standard deviations: half of 0.5° / 5 cm (the 95 % interval is 2.78σ).
 MAX_ROT_STD_DEG = 0.25
 MAX_TRANS_STD_M = 0.025
@@ -112,60 +122,93 @@ METHOD = "targetless (photo-consistency of the LiDAR map over {} frames)"
 @dataclass(eq=False)
 class ConsistencyFrame:
     """One camera image ``(H, W[, 3])`` uint8, the LiDAR's pose ``T_world_lidar`` ``(4, 4)`` (the
-    map's world) at the instant it was taken, and ``occluders`` ``(K, 3)``: world points of
-    things that stood there then but are not in the map (moving vehicles), which hide the map
+    map's world) at the instant ``t_ns`` it was taken, and ``occluders`` ``(K, 3)``: world points
+    of things that stood there then but are not in the map (moving vehicles), which hide the map
     points behind them in this image."""
 
     image: np.ndarray
     T_world_lidar: np.ndarray
     occluders: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    #: When it was taken, on the LiDAR's clock (ns): where the map's trajectory places it again
+    #: when the time offset moves; None where that is unknown.
+    t_ns: int | None = None
 
 
 @dataclass(eq=False)
 class _Parameters:
-    """What the search moves: ``T_cam_lidar`` = ``T_init`` turned and moved by ``basis @ y``
-    (:func:`~calib.targetless.apply_increment`; degrees and decimetres). ``basis`` ``(6, k)`` has
-    orthonormal columns, each a rotation or a translation: all six axes, or fewer where the motion
-    cannot observe some (:func:`_observable_basis`)."""
+    """What the search moves: ``T_cam_lidar`` = ``T_init`` turned and moved by ``basis[:6] @ y``
+    (:func:`~calib.targetless.apply_increment`; degrees and decimetres), and the time offset by
+    ``basis[6] @ y`` (:data:`TIME_UNIT_S`). ``basis`` ``(7, k)`` has orthonormal columns, each a
+    rotation, a translation or the time: all six axes, or fewer where the motion cannot observe
+    some (:func:`_observable_basis`), and the time where the offset may be off by up to
+    ``time_reach`` (units of :data:`TIME_UNIT_S`)."""
 
     T_init: np.ndarray
     basis: np.ndarray
+    time_reach: float = 0.0
 
     def pose(self, y: np.ndarray) -> np.ndarray:
         """``T_cam_lidar`` ``(4, 4)`` at coefficients ``y`` ``(k,)``."""
-        return apply_increment(self.basis @ y, self.T_init)
+        return apply_increment(self.basis[:6] @ y, self.T_init)
+
+    def shift_s(self, y: np.ndarray) -> float:
+        """How much larger (s) the time offset is at coefficients ``y`` ``(k,)``."""
+        return float(self.basis[6] @ y) * TIME_UNIT_S
 
     def is_rotation(self) -> np.ndarray:
-        """``(k,)`` bool: which columns turn (the others move)."""
+        """``(k,)`` bool: which columns turn."""
         return np.abs(self.basis[:3]).sum(axis=0) > 0
 
-    def per_column(self, rotation: float, translation: float) -> np.ndarray:
-        """``(k,)``: ``rotation`` for the turning columns, ``translation`` for the others."""
-        return np.where(self.is_rotation(), rotation, translation)
+    def is_translation(self) -> np.ndarray:
+        """``(k,)`` bool: which columns move."""
+        return np.abs(self.basis[3:6]).sum(axis=0) > 0
+
+    def per_column(self, rotation: float, translation: float, time: float) -> np.ndarray:
+        """``(k,)``: ``rotation`` for the turning columns, ``translation`` for the moving ones,
+        ``time`` for the time's."""
+        return np.where(self.is_rotation(), rotation, np.where(self.is_translation(), translation, time))
 
     def bounds(self) -> list[tuple[float, float]]:
-        """Powell's bounds on ``y``: :data:`SEARCH_REACH` along every column."""
-        reach = self.per_column(*SEARCH_REACH)
+        """Powell's bounds on ``y``: :data:`SEARCH_REACH` along every column, ``time_reach``
+        along the time's."""
+        reach = self.per_column(*SEARCH_REACH, self.time_reach)
         return list(zip(-reach, reach, strict=True))
+
+
+@dataclass(eq=False)
+class _Timing:
+    """When the frames were taken: their instants ``t_ns`` ``(F,)`` on the LiDAR clock at the
+    time offset given, and the map's ``trajectory`` that places them."""
+
+    trajectory: Trajectory
+    t_ns: np.ndarray
+
+    def poses(self, shift_s: float) -> np.ndarray:
+        """``(F, 4, 4)`` the LiDAR's poses at the frames with the time offset ``shift_s`` larger
+        (a camera stamp ``t`` is ``t - offset`` on the LiDAR clock)."""
+        return self.trajectory.interpolate(self.t_ns - round(shift_s * 1e9), clamp=True)
 
 
 class _Problem:
     """The frames' working images and the map in each frame's LiDAR coordinates."""
 
-    def __init__(self, frames: Sequence[ConsistencyFrame], camera: CameraModel, world: np.ndarray) -> None:
+    def __init__(
+        self,
+        frames: Sequence[ConsistencyFrame],
+        camera: CameraModel,
+        world: np.ndarray,
+        timing: _Timing | None = None,
+    ) -> None:
         prepared = [working_image(frame.image, camera) for frame in frames]
         self.grays = [gray.astype(np.float32) for gray, _ in prepared]
         self.K = prepared[0][1]
         self.height, self.width = self.grays[0].shape
         self.n_map = len(world)
-        #: Per frame ``(3, N + K_f)`` float32 in its LiDAR frame: the map's N points (they do not
-        #: depend on the extrinsic), then the frame's K_f occluders (they hide, they are not scored).
-        self.frame_points = [
-            np.ascontiguousarray(
-                transform_points(invert(f.T_world_lidar), np.vstack([world, f.occluders])).T, dtype=np.float32
-            )
-            for f in frames
-        ]
+        self.world = [np.vstack([world, f.occluders]) for f in frames]
+        #: Where the frames are when the time offset moves (None: it stays), and how far it has.
+        self.timing, self.shift_s = timing, 0.0
+        self._poses_at: tuple[float, np.ndarray | None] = (np.nan, None)
+        self._place(np.array([f.T_world_lidar for f in frames]))
         #: The images sampled now, stacked ``(F * height, width)``: one remap samples every frame.
         self.images = np.vstack(self.grays)
         if len(self.images) >= REMAP_LIMIT:  # 20 frames 320 wide: images taller than 5:1
@@ -174,6 +217,23 @@ class _Problem:
                 f"{len(self.images)} rows; expected fewer than {REMAP_LIMIT}",
                 field="image",
             )
+
+    def _place(self, poses: np.ndarray) -> None:
+        """Put the frames at the LiDAR poses ``T_world_lidar`` ``(F, 4, 4)``."""
+        self.poses = poses
+        #: Per frame ``(3, N + K_f)`` float32 in its LiDAR frame: the map's N points (they do not
+        #: depend on the extrinsic), then the frame's K_f occluders (they hide, they are not scored).
+        self.frame_points = [
+            np.ascontiguousarray(transform_points(invert(pose), points).T, dtype=np.float32)
+            for pose, points in zip(poses, self.world, strict=True)
+        ]
+
+    def at_shift(self, shift_s: float) -> None:
+        """Put the frames where they were taken with the time offset ``shift_s`` larger than the
+        one that placed them (:class:`_Timing`)."""
+        if shift_s != self.shift_s:
+            self._place(self.poses_at(shift_s))
+            self.shift_s = shift_s
 
     def blur(self, sigma: float) -> None:
         """Sample blurred images from now on (``sigma`` at the working width)."""
@@ -200,10 +260,14 @@ class _Problem:
             seen[k, shown[shown < self.n_map]] = True
         return seen
 
-    def observations(self, T: np.ndarray, frames: np.ndarray, stride: int = 1) -> _Observations:
+    def observations(
+        self, T: np.ndarray, frames: np.ndarray, stride: int = 1, shift_s: float = 0.0
+    ) -> _Observations:
         """The map points that at least :data:`MIN_VIEWS` of ``frames`` (indices) see with
-        ``T_cam_lidar`` ``T``, one observation per (frame, point); every ``stride``-th of them
-        (fewer while under :data:`MIN_POINTS` would remain)."""
+        ``T_cam_lidar`` ``T`` and the time offset ``shift_s`` larger (:meth:`at_shift`), one
+        observation per (frame, point); every ``stride``-th of them (fewer while under
+        :data:`MIN_POINTS` would remain)."""
+        self.at_shift(shift_s)
         visible = self.visible(T)[frames]
         seen = np.flatnonzero(visible.sum(axis=0) >= MIN_VIEWS)
         scored = np.zeros(self.n_map, dtype=bool)
@@ -215,14 +279,29 @@ class _Problem:
         compact = (np.cumsum(observed) - 1)[points]
         per_frame = np.split(points, np.searchsorted(rows, np.arange(1, len(frames))))
         xyz = np.hstack([self.frame_points[f][:, p] for f, p in zip(frames, per_frame, strict=True)])
-        return _Observations(xyz, rows, compact, int(observed.sum()), self.height, frames)
+        return _Observations(
+            xyz, rows, compact, int(observed.sum()), self.height, frames, self.poses, self.shift_s
+        )
 
-    def spreads(self, T: np.ndarray, obs: _Observations) -> tuple[np.ndarray, float]:
+    def poses_at(self, shift_s: float) -> np.ndarray:
+        """``(F, 4, 4)`` the frames' LiDAR poses with the time offset ``shift_s`` larger (the last
+        one asked for is kept: a search moves the time along some of its directions only)."""
+        if shift_s != self._poses_at[0]:
+            self._poses_at = (shift_s, self.timing.poses(shift_s))
+        return self._poses_at[1]
+
+    def spreads(self, T: np.ndarray, obs: _Observations, shift_s: float = 0.0) -> tuple[np.ndarray, float]:
         """The grey-level variance over the frames that see it ``(n,)`` of each observed point that
         at least :data:`MIN_VIEWS` of them see in the image, and the variance of these points' mean
-        grey levels, with ``T_cam_lidar`` ``T`` (grey levels standardised per frame)."""
+        grey levels, with ``T_cam_lidar`` ``T`` and the time offset ``shift_s`` larger (grey
+        levels standardised per frame)."""
         extension = photo_extension()
-        sums = self.point_sums(T, obs) if extension is None else self.kernel_point_sums(extension, T, obs)
+        moves = obs.transforms(T, None if shift_s == obs.shift_s else self.poses_at(shift_s))
+        sums = (
+            self.point_sums(moves, obs)
+            if extension is None
+            else self.kernel_point_sums(extension, moves, obs)
+        )
         total, total_square, count = sums
         good = count >= MIN_VIEWS
         point_mean = total[good] / count[good]
@@ -230,15 +309,19 @@ class _Problem:
         spread = np.maximum(point_square - point_mean**2, 0.0)
         return spread, float(np.var(point_mean)) if len(point_mean) else 0.0
 
-    def point_sums(self, T: np.ndarray, obs: _Observations) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def point_sums(self, moves: np.ndarray, obs: _Observations) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per observed point ``(n_points,)``: the sums of its grey levels standardised per frame
         and of their squares (float64), and how many of its observations fall inside their image
-        (int64), with ``T_cam_lidar`` ``T``. The specification of the compiled
+        (int64), each run of observations moved into the camera by its ``moves`` ``(R, 3, 4)``
+        (:meth:`_Observations.transforms`). The specification of the compiled
         :meth:`kernel_point_sums`, and its stand-in."""
-        # The search's inner loop (thousands of calls): float32 points, (3, M) for one matrix
-        # product, per-frame sums over contiguous runs instead of scattered bincounts, and the
-        # few observations that fall outside their image zeroed instead of weighting all of them.
-        camera = T[:3, :3].astype(np.float32) @ obs.xyz + T[:3, 3, None].astype(np.float32)
+        # The search's inner loop (thousands of calls): float32 points, (3, m) for one matrix
+        # product per frame, per-frame sums over contiguous runs instead of scattered bincounts,
+        # and the few observations that fall outside their image zeroed instead of weighting all.
+        camera = np.empty_like(obs.xyz)
+        for move, start, length in zip(moves, obs.run_starts, obs.run_lengths, strict=True):
+            run = slice(start, start + length)
+            camera[:, run] = move[:, :3] @ obs.xyz[:, run] + move[:, 3, None]
         u, v, _, inside = _project(camera.T, self.K, self.width, self.height)
         # A point inside its frame samples only that frame's rows of the stack.
         values = _bilinear(self.images, u, v + obs.row_offset).astype(np.float64)
@@ -257,7 +340,7 @@ class _Problem:
         return total, np.bincount(obs.point, values * values, minlength=obs.n_points), count
 
     def kernel_point_sums(
-        self, extension: ModuleType, T: np.ndarray, obs: _Observations
+        self, extension: ModuleType, moves: np.ndarray, obs: _Observations
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`point_sums` in one pass of the compiled ``extension`` (:mod:`calib.photo_kernel`),
         on one thread: for the 214 000 observations of a 20-frame room 4.4 -> 2.3 ms, and 16 ->
@@ -272,17 +355,18 @@ class _Problem:
         (fx, _, cx), (_, fy, cy) = self.K[:2]
         runs = (tensor(r, np.int64) for r in (obs.run_starts, obs.run_lengths, obs.run_rows))
         sums = extension.point_sums(
-            tensor(self.images, np.float32), tensor(obs.xyz_rows, np.float32), tensor(T[:3], np.float32),
+            tensor(self.images, np.float32), tensor(obs.xyz_rows, np.float32), tensor(moves, np.float32),
             float(fx), float(fy), float(cx), float(cy), self.height, *runs, tensor(obs.point, np.int64),
             obs.n_points,
         )  # fmt: skip
         return tuple(s.numpy() for s in sums)
 
-    def cost(self, T: np.ndarray, obs: _Observations) -> float:
-        """The photo-inconsistency of the observed points with ``T_cam_lidar`` ``T``: the mean of
-        :meth:`spreads` over the points but the worst :data:`TRIM`, over the variance between
-        points (so that moving every point onto one flat wall does not pay)."""
-        spread, between = self.spreads(T, obs)
+    def cost(self, T: np.ndarray, obs: _Observations, shift_s: float = 0.0) -> float:
+        """The photo-inconsistency of the observed points with ``T_cam_lidar`` ``T`` and the time
+        offset ``shift_s`` larger: the mean of :meth:`spreads` over the points but the worst
+        :data:`TRIM`, over the variance between points (so that moving every point onto one flat
+        wall does not pay)."""
+        spread, between = self.spreads(T, obs, shift_s)
         kept = int(len(spread) * (1 - TRIM))
         if kept < MIN_POINTS // 4:
             return 1e3
@@ -293,7 +377,8 @@ class _Observations:
     """Flat (frame, point) observations, grouped by frame: the point in the frame's LiDAR
     coordinates ``xyz`` ``(3, M)`` float32, the position ``row`` ``(M,)`` of its frame in
     ``frames`` (indices into the problem's frames, ascending) and its index ``point`` ``(M,)``
-    among the ``n_points`` observed points; ``image_height`` the frames' (the images are stacked)."""
+    among the ``n_points`` observed points; ``image_height`` the frames' (the images are stacked);
+    ``poses`` ``(F, 4, 4)`` all frames' LiDAR poses, at the time offset ``shift_s`` larger."""
 
     def __init__(
         self,
@@ -303,10 +388,12 @@ class _Observations:
         n_points: int,
         image_height: int,
         frames: np.ndarray,
+        poses: np.ndarray,
+        shift_s: float = 0.0,
     ) -> None:
         self.xyz, self.point, self.n_points = xyz, point, n_points
-        #: ``(M, 3)`` the same points row by row, for the compiled sums (a view of ``xyz``, whose
-        #: columns ``np.hstack`` lays out one after the other).
+        self.poses, self.shift_s = poses, shift_s
+        #: ``(M, 3)`` the same points row by row, for the compiled sums.
         self.xyz_rows = np.ascontiguousarray(xyz.T)
         #: ``(M,)`` the first row of each observation's frame in the stacked images.
         self.row_offset = frames[row].astype(np.float32) * image_height
@@ -316,10 +403,21 @@ class _Observations:
         self.run_lengths = per_frame[per_frame > 0]
         self.run_starts = np.cumsum(self.run_lengths) - self.run_lengths
         self.run = (np.cumsum(per_frame > 0) - 1)[row]
-        #: ``(R,)`` the first row of each run's frame in the stacked images.
-        self.run_rows = frames[per_frame > 0].astype(np.int64) * image_height
+        #: ``(R,)`` each run's frame (an index into the problem's), and its first row in the
+        #: stacked images.
+        self.run_frames = frames[per_frame > 0]
+        self.run_rows = self.run_frames.astype(np.int64) * image_height
         #: ``(n_points,)`` how many frames observe each point.
         self.point_counts = np.bincount(point, minlength=n_points)
+
+    def transforms(self, T: np.ndarray, poses: np.ndarray | None = None) -> np.ndarray:
+        """``(R, 3, 4)`` float32: what moves each run's points into its camera with
+        ``T_cam_lidar`` ``T`` ``(4, 4)``, its frame placed at the LiDAR pose in ``poses``
+        ``(F, 4, 4)`` instead of where it was observed (None: where it was)."""
+        moves = np.repeat(T[None], len(self.run_frames), axis=0)
+        if poses is not None:
+            moves = moves @ invert(poses[self.run_frames]) @ self.poses[self.run_frames]
+        return np.ascontiguousarray(moves[:, :3], dtype=np.float32)
 
 
 def _bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -351,16 +449,28 @@ def _project(
     return u, v, z, inside
 
 
+def _observed(
+    problem: _Problem, params: _Parameters, y: np.ndarray, frames: np.ndarray, stride: int = 1
+) -> _Observations:
+    """:meth:`_Problem.observations` at coefficients ``y`` ``(k,)``."""
+    return problem.observations(params.pose(y), frames, stride, params.shift_s(y))
+
+
+def _cost(problem: _Problem, params: _Parameters, y: np.ndarray, obs: _Observations) -> float:
+    """:meth:`_Problem.cost` of the observations ``obs`` at coefficients ``y`` ``(k,)``."""
+    return problem.cost(params.pose(y), obs, params.shift_s(y))
+
+
 def _search(
     problem: _Problem, params: _Parameters, y: np.ndarray, frames: np.ndarray, xtol: float, stride: int = 1
 ) -> np.ndarray:
     """Powell from coefficients ``y`` ``(k,)`` over ``frames`` (indices), with the points and
     visibility at ``y`` (every ``stride``-th point, :meth:`_Problem.observations`), to ``xtol``
     (degrees / decimetres); returns the coefficients."""
-    obs = problem.observations(params.pose(y), frames, stride)
+    obs = _observed(problem, params, y, frames, stride)
     options = {"xtol": xtol, "ftol": 1e-6}
     return minimize(
-        lambda z: problem.cost(params.pose(z), obs),
+        lambda z: _cost(problem, params, z, obs),
         y,
         method="Powell",
         bounds=params.bounds(),
@@ -395,9 +505,10 @@ def _jackknife_groups(n_frames: int) -> int:
 
 
 def _covariance(problem: _Problem, params: _Parameters, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two covariances ``(6, 6)`` of the increment ``basis @ y`` (degrees, decimetres; nothing
-    along the axes the basis leaves out): how the frames disagree, and how far the cost's own
-    error may have moved its minimum (:func:`_spread` takes the larger).
+    """Two covariances ``(7, 7)`` of the increment ``basis @ y`` (degrees, decimetres,
+    :data:`TIME_UNIT_S`; nothing along the axes the basis leaves out): how the frames disagree,
+    and how far the cost's own error may have moved its minimum (:func:`_spread` takes the
+    larger).
 
     The first is a jackknife over :data:`JACKKNIFE_GROUPS` stretches of consecutive frames, each
     left out in turn. The estimate without a stretch is one Newton step from ``y``: the gradient
@@ -410,21 +521,21 @@ def _covariance(problem: _Problem, params: _Parameters, y: np.ndarray) -> tuple[
     flat, and no wider than the search's reach."""
     every = np.arange(len(problem.grays))
     step = params.per_column(*STEP)
-    observed = problem.observations(params.pose(y), every)
-    values, vectors = np.linalg.eigh(_hessian(lambda z: problem.cost(params.pose(z), observed), y, step))
+    observed = _observed(problem, params, y, every)
+    values, vectors = np.linalg.eigh(_hessian(lambda z: _cost(problem, params, z, observed), y, step))
     # Only the curvature that holds the estimate: a direction the cost does not curve up in
     # moves nothing (it shows in the other stretches' steps instead).
     inverse = vectors @ np.diag(np.where(values > 0, 1 / np.maximum(values, 1e-12), 0.0)) @ vectors.T
     groups = np.array_split(every, _jackknife_groups(len(every)))
     steps = []
     for group in groups:
-        obs = problem.observations(params.pose(y), np.setdiff1d(every, group))
-        steps.append(-inverse @ _gradient(lambda z, obs=obs: problem.cost(params.pose(z), obs), y, step))
+        obs = _observed(problem, params, y, np.setdiff1d(every, group))
+        steps.append(-inverse @ _gradient(lambda z, obs=obs: _cost(problem, params, z, obs), y, step))
     steps = np.array(steps)
     g = len(groups)
     centred = steps - steps.mean(axis=0)
     jackknife = (g - 1) / g * centred.T @ centred
-    rise = 2 * COST_TOLERANCE * problem.cost(params.pose(y), observed)
+    rise = 2 * COST_TOLERANCE * _cost(problem, params, y, observed)
     # Where the cost does not curve up, the region reaches as far as the search may go.
     curvature = np.maximum(values, rise / max(SEARCH_REACH) ** 2)
     tolerance = vectors @ np.diag(rise / curvature) @ vectors.T
@@ -432,26 +543,26 @@ def _covariance(problem: _Problem, params: _Parameters, y: np.ndarray) -> tuple[
 
 
 def _axis_std(covariance: np.ndarray) -> np.ndarray:
-    """Per-axis standard deviations ``(6,)`` of a covariance ``(6, 6)``."""
+    """Per-axis standard deviations ``(n,)`` of a covariance ``(n, n)``."""
     return np.sqrt(np.maximum(np.diag(covariance), 0.0))
 
 
 def _spread(jackknife: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
-    """Per-axis standard deviations ``(6,)`` of the estimate from the jackknife's and the cost
-    tolerance's ``(6,)`` (degrees, decimetres): for the rotation and for the translation, the part
-    whose vector is the longer. Not their sum: the stretches' disagreement moves the cost's
-    minimum too, so it is part of what the tolerance covers (over the room's and the office's
-    seeds 0-19, with the LiDAR map of a release that registered its sweeps once, the sum at the
-    0.5 % it needed held the truth in 111 of 116 trials and left 31 results ``ok``; the larger at
-    0.7 %, 112 and 35)."""
-    rotation = max(jackknife[:3], tolerance[:3], key=np.linalg.norm)
-    return np.concatenate([rotation, max(jackknife[3:], tolerance[3:], key=np.linalg.norm)])
+    """Per-axis standard deviations ``(7,)`` of the estimate from the jackknife's and the cost
+    tolerance's ``(7,)`` (degrees, decimetres, :data:`TIME_UNIT_S`): for the rotation, the
+    translation and the time, the part whose vector is the longer. Not their sum: the
+    stretches' disagreement moves the cost's minimum too, so it is part of what the tolerance
+    covers (over the room's and the office's seeds 0-19, with the LiDAR map of a release that
+    registered its sweeps once, the sum at the 0.5 % it needed held the truth in 111 of 116
+    trials and left 31 results ``ok``; the larger at 0.7 %, 112 and 35)."""
+    parts = (slice(3), slice(3, 6), slice(6, 7))
+    return np.concatenate([max(jackknife[part], tolerance[part], key=np.linalg.norm) for part in parts])
 
 
 def _rotation_translation_std(std: np.ndarray) -> tuple[float, float]:
-    """Per-axis standard deviations ``(6,)`` (degrees, decimetres) as one rotation (degrees) and
-    one translation (metres): the lengths of their vectors."""
-    return float(np.linalg.norm(std[:3])), float(np.linalg.norm(std[3:])) / 10.0
+    """Per-axis standard deviations ``(7,)`` (degrees, decimetres, time) as one rotation
+    (degrees) and one translation (metres): the lengths of their vectors."""
+    return float(np.linalg.norm(std[:3])), float(np.linalg.norm(std[3:6])) / 10.0
 
 
 def _coarse_to_fine(
@@ -474,8 +585,7 @@ def _coarse_to_fine(
 
 def _self_cost(problem: _Problem, params: _Parameters, y: np.ndarray) -> float:
     """The cost at ``y`` over the points visible there."""
-    T = params.pose(y)
-    return problem.cost(T, problem.observations(T, np.arange(len(problem.grays))))
+    return _cost(problem, params, y, _observed(problem, params, y, np.arange(len(problem.grays))))
 
 
 def _out_of_the_valley(problem: _Problem, params: _Parameters, y: np.ndarray) -> np.ndarray:
@@ -495,7 +605,7 @@ def _out_of_the_valley(problem: _Problem, params: _Parameters, y: np.ndarray) ->
     centre hides nothing new, and its scan keeps the points of ``y`` (6 times cheaper).
     """
     every = np.arange(len(problem.grays))
-    obs = problem.observations(params.pose(y), every)
+    obs = _observed(problem, params, y, every)
     problem.blur(VALLEY_BLUR)
     along = np.linspace(-VALLEY_REACH, VALLEY_REACH, 2 * VALLEY_STEPS + 1)
     low, high = np.array(params.bounds()).T
@@ -503,13 +613,13 @@ def _out_of_the_valley(problem: _Problem, params: _Parameters, y: np.ndarray) ->
     for axis, turns in zip(np.eye(len(y)), params.is_rotation(), strict=True):
         for z in (np.clip(y + a * axis, low, high) for a in along if a != 0):
             candidates.append(z)
-            costs.append(problem.cost(params.pose(z), obs) if turns else _self_cost(problem, params, z))
-    here = problem.cost(params.pose(y), obs)
+            costs.append(_cost(problem, params, z, obs) if turns else _self_cost(problem, params, z))
+    here = _cost(problem, params, y, obs)
     problem.blur(BLUR_STAGES[-1])
     if min(costs) >= here:
         return y
     other = _coarse_to_fine(problem, params, candidates[int(np.argmin(costs))], BLUR_STAGES[-3:])
-    return other if _self_cost(problem, params, other) < problem.cost(params.pose(y), obs) else y
+    return other if _self_cost(problem, params, other) < _cost(problem, params, y, obs) else y
 
 
 def _descend_translations(problem: _Problem, params: _Parameters, y: np.ndarray) -> np.ndarray:
@@ -529,7 +639,7 @@ def _descend_translations(problem: _Problem, params: _Parameters, y: np.ndarray)
         moved = True
         while moved:  # the cost falls at every move: it ends
             moved = False
-            for column in np.flatnonzero(~params.is_rotation()):
+            for column in np.flatnonzero(params.is_translation()):
                 for sign in (-1.0, 1.0):
                     z = np.clip(y + sign * step * np.eye(len(y))[column], low, high)
                     cost = _self_cost(problem, params, z)
@@ -544,13 +654,13 @@ def _descend_translations(problem: _Problem, params: _Parameters, y: np.ndarray)
 def _refit_rotation(problem: _Problem, params: _Parameters, y: np.ndarray) -> np.ndarray:
     """``y`` with its rotation coefficients re-fitted (Powell, the points visible at ``y``, the
     translation held): where a step along a translation lands once the rotation follows it."""
-    obs = problem.observations(params.pose(y), np.arange(len(problem.grays)))
+    obs = _observed(problem, params, y, np.arange(len(problem.grays)))
     turns = params.is_rotation()
 
     def cost(rotation: np.ndarray) -> float:
         z = y.copy()
         z[turns] = rotation
-        return problem.cost(params.pose(z), obs)
+        return _cost(problem, params, z, obs)
 
     refitted = y.copy()
     options = {"xtol": REFIT_XTOL_DEG, "ftol": 1e-6}
@@ -572,7 +682,7 @@ def _flat_translations(problem: _Problem, params: _Parameters, y: np.ndarray, he
     minimum, ``ok``) and 1.9 % with the rotation re-fitted."""
     step = PROFILE_STEP_M * 10.0  # decimetres
     flat = []
-    for column in np.flatnonzero(~params.is_rotation()):
+    for column in np.flatnonzero(params.is_translation()):
         rise = np.inf
         for sign in (-1, 1):
             stepped = y + sign * step * np.eye(len(y))[column]
@@ -581,7 +691,7 @@ def _flat_translations(problem: _Problem, params: _Parameters, y: np.ndarray, he
                 cost = min(cost, _self_cost(problem, params, _refit_rotation(problem, params, stepped)))
             rise = min(rise, cost)
         if rise < here * (1 + MIN_RISE):
-            direction = np.round(params.basis[3:, column], 2).tolist()
+            direction = np.round(params.basis[3:6, column], 2).tolist()
             change = 100 * (rise / here - 1)
             moved = f"moving the camera {PROFILE_STEP_M * 100:.0f} cm along {direction} (camera frame)"
             if change < 0:
@@ -621,15 +731,17 @@ def _straight_travel(frames: Sequence[ConsistencyFrame]) -> tuple[float, np.ndar
     return turn, in_lidar / np.linalg.norm(in_lidar)
 
 
-def _observable_basis(travel_cam: np.ndarray | None) -> np.ndarray:
-    """``(6, k)``: all six axes, or without the rotation about and the translation along the
-    unit direction of travel ``travel_cam`` ``(3,)`` (camera frame) of a straight drive."""
+def _observable_basis(travel_cam: np.ndarray | None, timed: bool) -> np.ndarray:
+    """``(7, k)``: all six axes, or without the rotation about and the translation along the
+    unit direction of travel ``travel_cam`` ``(3,)`` (camera frame) of a straight drive; and the
+    time offset where ``timed``."""
     if travel_cam is None:
-        return np.eye(6)
-    across = np.linalg.svd(travel_cam[None, :])[2][1:].T  # (3, 2) orthonormal, normal to it
-    basis = np.zeros((6, 4))
-    basis[:3, :2], basis[3:, 2:] = across, across
-    return basis
+        basis = np.eye(7, 6)
+    else:
+        across = np.linalg.svd(travel_cam[None, :])[2][1:].T  # (3, 2) orthonormal, normal to it
+        basis = np.zeros((7, 4))
+        basis[:3, :2], basis[3:6, 2:] = across, across
+    return np.column_stack([basis, np.eye(7)[:, 6]]) if timed else basis
 
 
 def photo_consistency_extrinsic(
@@ -638,10 +750,17 @@ def photo_consistency_extrinsic(
     lidar_map: LidarMap,
     T_init: np.ndarray,
     search_straight: bool = True,
+    offset_reach_s: float = 0.0,
 ) -> ExtrinsicResult:
     """Refine ``T_cam_lidar`` ``(4, 4)`` from a rough guess so that the map's points look alike in
     all ``frames``. Never raises on weak data: too few frames or points give the guess back with
     a ``poorly constrained`` verdict and the reason.
+
+    Where the time offset that placed the frames may be up to ``offset_reach_s`` off (and every
+    frame has its instant ``t_ns``), the offset is searched with the extrinsic, within that reach
+    (the frames placed again along the map's trajectory); the JSON's ``time_offset_shift`` gives
+    how much larger it came out (s) and its spread. Not on a straight drive: there a change of
+    the offset is a shift along the travel, which is kept.
 
     A rig that drives straight (turning less than :data:`MIN_TURN_DEG`) sees the surfaces beside
     its path, which lie along the direction of travel, shift within themselves under a roll about
@@ -650,7 +769,10 @@ def photo_consistency_extrinsic(
     ``search_straight`` False the guess is kept whole without a search (its result could not be
     applied: 15 s of the quick demo's 3 s straight recording)."""
     method = METHOD.format(len(frames))
-    problem = _Problem(frames, camera, lidar_map.points)
+    timing = None
+    if offset_reach_s > 0 and all(f.t_ns is not None for f in frames):
+        timing = _Timing(lidar_map.trajectory, np.array([f.t_ns for f in frames], dtype=np.int64))
+    problem = _Problem(frames, camera, lidar_map.points, timing)
     every = np.arange(len(frames))
     initial = problem.visible(T_init)
     n_points = int((initial.sum(axis=0) >= MIN_VIEWS).sum())
@@ -673,13 +795,13 @@ def photo_consistency_extrinsic(
             "kept_from_guess": {"travel_direction_cam": travel_cam.tolist()},
         }
         return _result(T_init, T_init, "poorly constrained", [reason], (np.inf,) * 2, extra, n_points, method)
-    params = _Parameters(T_init, _observable_basis(travel_cam))
+    timed = timing is not None and travel_cam is None
+    params = _Parameters(T_init, _observable_basis(travel_cam, timed), offset_reach_s / TIME_UNIT_S)
     y = _coarse_to_fine(problem, params, np.zeros(params.basis.shape[1]), BLUR_STAGES)
     y = _out_of_the_valley(problem, params, y)
     y = _descend_translations(problem, params, y)
-    T_best = params.pose(y)
-    obs = problem.observations(T_best, every)
-    cost_init, cost_final = problem.cost(T_init, obs), problem.cost(T_best, obs)
+    obs = _observed(problem, params, y, every)
+    cost_init, cost_final = problem.cost(T_init, obs), _cost(problem, params, y, obs)
     jackknife, tolerance = (_axis_std(c) for c in _covariance(problem, params, y))
     std = _spread(jackknife, tolerance)
     rot_std, trans_std = _rotation_translation_std(std)
@@ -696,7 +818,9 @@ def photo_consistency_extrinsic(
             "ran off to where little of the map is in view"
         )
     low, high = np.array(params.bounds()).T
-    if np.isclose(y, low, atol=1e-3).any() or np.isclose(y, high, atol=1e-3).any():
+    bounded = np.isclose(y, low, atol=1e-3) | np.isclose(y, high, atol=1e-3)
+    timed_column = ~(params.is_rotation() | params.is_translation())
+    if bounded[~timed_column].any():
         reasons.append(
             f"the search reached its bound ({SEARCH_REACH[0]:.0f}° / {SEARCH_REACH[1] * 10:.0f} cm from "
             "the guess)"
@@ -722,7 +846,7 @@ def photo_consistency_extrinsic(
     extra = {
         "photo_consistency": {"init": cost_init, "final": cost_final},
         "rotation_std_deg_xyz": (std[:3]).tolist(),
-        "translation_std_m_xyz": (std[3:] / 10.0).tolist(),
+        "translation_std_m_xyz": (std[3:6] / 10.0).tolist(),
         "std_parts": {
             name: {"rotation_deg": rotation, "translation_m": translation}
             for name, (rotation, translation) in (("jackknife", frames_std), ("cost_tolerance", flat_std))
@@ -732,6 +856,19 @@ def photo_consistency_extrinsic(
     }
     if travel_cam is not None:
         extra["kept_from_guess"] = {"travel_direction_cam": travel_cam.tolist()}
+    if timed:
+        # The caller judges what a shift at the window's edge means (the offset may lie past it).
+        extra["time_offset_shift"] = {
+            "shift_s": params.shift_s(y),
+            "std_s": float(std[6] * TIME_UNIT_S),
+            "interval_95_s": float(interval_95 * std[6] * TIME_UNIT_S),
+            "reach_s": offset_reach_s,
+            "at_reach": bool(bounded[timed_column].any()),
+            "std_parts_s": {
+                "jackknife": float(jackknife[6] * TIME_UNIT_S),
+                "cost_tolerance": float(tolerance[6] * TIME_UNIT_S),
+            },
+        }
     verdict = "poorly constrained" if reasons else "ok"
     return _result(
         params.pose(y), T_init, verdict, reasons, (rot_std, trans_std), extra, n_points, method, interval_95

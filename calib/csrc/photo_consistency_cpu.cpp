@@ -4,7 +4,8 @@
 // point) observations, and the NumPy form takes some forty passes over them (4 ms a score, three
 // quarters of `lts calibrate`'s search).
 //
-// Per observation: the map point moved into the camera by the candidate extrinsic, projected,
+// Per observation: the map point moved into the camera by its frame's transform (the candidate
+// extrinsic, and the frame placed where the candidate time offset puts it), projected,
 // and its grey level sampled bilinearly in its frame (edges repeated); per frame, the grey levels
 // of the observations inside the image standardised (auto-exposure); per map point, the sums of
 // its standardised grey levels, of their squares and their count, added in observation order.
@@ -33,31 +34,33 @@ void check(const torch::Tensor& t, const char* name, torch::ScalarType dtype, in
 
 // images (F*height, W) float32: the frames' grey levels stacked; xyz (M, 3) float32: each
 // observation's map point in its frame's LiDAR coordinates, grouped by frame into runs (first
-// index, length and the first row of the run's frame in `images`: (R,) int64 each); pose (3, 4)
-// float32: [R | t] of T_cam_lidar; point (M,) int64: each observation's point among n_points.
+// index, length and the first row of the run's frame in `images`: (R,) int64 each); moves
+// (R, 3, 4) float32: each run's [R | t] from its points' coordinates into its camera; point (M,)
+// int64: each observation's point among n_points.
 // Returns the per-point sums (n_points,) float64 of the standardised grey levels and of their
 // squares, and the count (n_points,) int64 of the observations inside their image.
 std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::Tensor& xyz,
-                                      const torch::Tensor& pose, double fx, double fy, double cx,
+                                      const torch::Tensor& moves, double fx, double fy, double cx,
                                       double cy, int64_t height, const torch::Tensor& run_starts,
                                       const torch::Tensor& run_lengths,
                                       const torch::Tensor& run_rows, const torch::Tensor& point,
                                       int64_t n_points) {
   check(images, "images", torch::kFloat32, 2);
   check(xyz, "xyz", torch::kFloat32, 2);
-  check(pose, "pose", torch::kFloat32, 2);
+  check(moves, "moves", torch::kFloat32, 3);
   check(run_starts, "run_starts", torch::kInt64, 1);
   check(run_lengths, "run_lengths", torch::kInt64, 1);
   check(run_rows, "run_rows", torch::kInt64, 1);
   check(point, "point", torch::kInt64, 1);
   const int64_t m = point.size(0), n_runs = run_starts.size(0), width = images.size(1);
   TORCH_CHECK(xyz.size(0) == m && xyz.size(1) == 3, "xyz: expected (", m, ", 3)");
-  TORCH_CHECK(pose.size(0) == 3 && pose.size(1) == 4, "pose: expected (3, 4)");
+  TORCH_CHECK(moves.size(0) == n_runs && moves.size(1) == 3 && moves.size(2) == 4, "moves: expected (",
+              n_runs, ", 3, 4)");
   TORCH_CHECK(run_lengths.size(0) == n_runs && run_rows.size(0) == n_runs, "runs: lengths differ");
 
   const float* img = images.data_ptr<float>();
   const float* P = xyz.data_ptr<float>();
-  const float* T = pose.data_ptr<float>();
+  const float* all_moves = moves.data_ptr<float>();
   const int64_t* start = run_starts.data_ptr<int64_t>();
   const int64_t* length = run_lengths.data_ptr<int64_t>();
   const int64_t* first_row = run_rows.data_ptr<int64_t>();
@@ -72,14 +75,14 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
   const float ffx = float(fx), ffy = float(fy), fcx = float(cx), fcy = float(cy);
   const float u_max = float(width - 1), v_max = float(height - 1);
 
-  const float r00 = T[0], r01 = T[1], r02 = T[2], t0 = T[3], r10 = T[4], r11 = T[5], r12 = T[6];
-  const float t1 = T[7], r20 = T[8], r21 = T[9], r22 = T[10], t2 = T[11];
-
   // Each observation's grey level, then its standardised one; NaN where it falls outside its image.
   std::vector<double> value(m);
   double* const g = value.data();
   for (int64_t r = 0; r < n_runs; ++r) {
     const float* frame = img + first_row[r] * width;
+    const float* T = all_moves + 12 * r;
+    const float r00 = T[0], r01 = T[1], r02 = T[2], t0 = T[3], r10 = T[4], r11 = T[5], r12 = T[6];
+    const float t1 = T[7], r20 = T[8], r21 = T[9], r22 = T[10], t2 = T[11];
     const int64_t begin = start[r], end = start[r] + length[r];
     double sum = 0.0, sum_sq = 0.0;
     int64_t n_in = 0;

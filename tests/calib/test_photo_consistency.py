@@ -18,6 +18,7 @@ from calib.photo_consistency import (
     MIN_TURN_DEG,
     PROFILE_STEP_M,
     SEARCH_REACH,
+    TIME_UNIT_S,
     ConsistencyFrame,
     _covariance,
     _descend_translations,
@@ -27,6 +28,7 @@ from calib.photo_consistency import (
     _Problem,
     _spread,
     _straight_travel,
+    _Timing,
 )
 from rig.camera import CameraModel
 from rig.trajectory import Trajectory
@@ -53,8 +55,8 @@ def test_a_straight_drive_keeps_the_roll_about_and_the_shift_along_its_travel() 
         Rotation.from_euler("xyz", (-90, 0, -90), degrees=True).as_matrix(), (0.1, -0.2, 0.0)
     )
     travel_cam = T_init[:3, :3] @ travel
-    params = _Parameters(T_init, _observable_basis(travel_cam))
-    assert params.basis.shape == (6, 4)
+    params = _Parameters(T_init, _observable_basis(travel_cam, timed=False))
+    assert params.basis.shape == (7, 4)
     for _ in range(5):
         T = params.pose(rng.normal(0.0, 3.0, 4))
         turned = Rotation.from_matrix(T[:3, :3] @ T_init[:3, :3].T).as_rotvec()
@@ -64,7 +66,8 @@ def test_a_straight_drive_keeps_the_roll_about_and_the_shift_along_its_travel() 
     turning = _frames(np.linspace(0.0, 40.0, 12), np.column_stack([along, along**2 / 40, 0 * along]))
     turn, travel = _straight_travel(turning)
     assert turn > 39.0 and travel is None
-    np.testing.assert_array_equal(_observable_basis(None), np.eye(6))
+    np.testing.assert_array_equal(_observable_basis(None, timed=False), np.eye(7, 6))
+    np.testing.assert_array_equal(_observable_basis(None, timed=True), np.eye(7))
 
 
 def test_moving_things_hide_the_map_points_behind_them() -> None:
@@ -98,6 +101,38 @@ def test_coarse_stages_score_every_kth_point_but_never_fewer_than_the_minimum() 
     assert halved.n_points == len(wall) // 2 and halved.xyz.shape[1] == 3 * (len(wall) // 2)
     np.testing.assert_allclose(halved.xyz[:, : halved.n_points], wall[::2].T, atol=1e-6)  # float32
     assert problem.observations(np.eye(4), every, stride=8).n_points == len(wall[::3]) >= MIN_POINTS
+
+
+def test_observations_follow_the_time_offset_as_the_frames_placed_again() -> None:
+    """A rig turning 10°/s and driving 1 m/s past a wall: the observations' transforms to a time
+    offset 20 ms larger put the points where the frames placed there see them."""
+    camera = CameraModel("pinhole", 64, 48, np.array([[40.0, 0, 32], [0, 40.0, 24], [0, 0, 1]]), np.zeros(0))
+    u, v = np.meshgrid(np.linspace(-0.5, 0.5, 60), np.linspace(-0.5, 0.5, 40))
+    wall = np.column_stack([u.ravel(), v.ravel(), np.full(u.size, 10.0)])
+    knots = np.arange(0, 1_000_000_001, 100_000_000)
+    poses = [
+        make_transform(Rotation.from_euler("y", 10 * t * 1e-9, degrees=True).as_matrix(), (t * 1e-9, 0, 0))
+        for t in knots
+    ]
+    timing = _Timing(Trajectory.from_poses(knots, np.stack(poses)), np.array([250, 500, 750]) * 1_000_000)
+    image = np.zeros((48, 64), np.uint8)
+    frames = [
+        ConsistencyFrame(image, pose, t_ns=t) for pose, t in zip(timing.poses(0.0), timing.t_ns, strict=True)
+    ]
+    problem = _Problem(frames, camera, wall, timing)
+    every = np.arange(3)
+    T = make_transform(Rotation.from_euler("x", 1.0, degrees=True).as_matrix(), (0.1, 0.0, 0.0))
+    observed = problem.observations(T, every)
+    placed = problem.observations(T, every, shift_s=0.02)
+    assert observed.n_points == placed.n_points == len(wall) and placed.shift_s == 0.02
+    moves = observed.transforms(T, problem.poses_at(0.02))
+    assert moves.shape == (3, 3, 4) and moves.dtype == np.float32
+    runs = zip(moves, observed.run_starts, observed.run_lengths, strict=True)
+    in_camera = np.hstack([m[:, :3] @ observed.xyz[:, a : a + n] + m[:, 3, None] for m, a, n in runs])
+    np.testing.assert_allclose(in_camera, T[:3, :3] @ placed.xyz + T[:3, 3, None], atol=1e-5)
+    np.testing.assert_allclose(observed.transforms(T)[1], T[:3], atol=1e-7)  # where observed
+    # 20 ms at 10°/s and 1 m/s: the points have moved by 0.2° about y and 2 cm.
+    assert 0.02 < np.abs(placed.xyz - observed.xyz).max() < 0.2
 
 
 def test_the_map_keeps_measured_points_one_per_voxel() -> None:
@@ -137,7 +172,7 @@ def test_a_flat_valley_along_a_translation_is_named(monkeypatch) -> None:
 
     monkeypatch.setattr(photo_consistency, "_self_cost", cost)
     monkeypatch.setattr(photo_consistency, "_refit_rotation", lambda problem, params, y: y)  # no coupling
-    params = _Parameters(np.eye(4), np.eye(6))
+    params = _Parameters(np.eye(4), np.eye(7, 6))
     reasons = _flat_translations(None, params, np.zeros(6), 1.0)
     assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "1.0 %" in reasons[0]
     curvature[4] = 2 * MIN_RISE
@@ -155,10 +190,10 @@ class _TiltedValley:
 
     grays = (None,)  # one frame
 
-    def observations(self, T: np.ndarray, frames: np.ndarray) -> None:
+    def observations(self, T: np.ndarray, frames: np.ndarray, stride: int, shift_s: float) -> None:
         return None
 
-    def cost(self, T: np.ndarray, obs: None) -> float:
+    def cost(self, T: np.ndarray, obs: None, shift_s: float) -> float:
         turn = Rotation.from_matrix(T[:3, :3]).as_rotvec(degrees=True)
         shift = T[:3, 3] / PROFILE_STEP_M
         valley = 2 * MIN_RISE * (shift[1] - turn[0]) ** 2 + MIN_RISE / 10 * turn[0] ** 2
@@ -168,7 +203,7 @@ class _TiltedValley:
 def test_a_valley_that_a_turn_follows_is_named_with_the_rotation_refitted(monkeypatch) -> None:
     """On the 20 s room a result 13 cm above the truth rose 3.2 % 10 cm back with its rotation held
     and said ok; with the rotation re-fitted to the step the rise is 1.9 %."""
-    params = _Parameters(np.eye(4), np.eye(6))
+    params = _Parameters(np.eye(4), np.eye(7, 6))
     reasons = _flat_translations(_TiltedValley(), params, np.zeros(6), 1.0)
     assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "rotation following" in reasons[0]
     monkeypatch.setattr(photo_consistency, "_refit_rotation", lambda problem, params, y: y)
@@ -185,7 +220,7 @@ def test_the_last_descent_walks_a_flat_valley_and_keeps_the_better_end(monkeypat
         return 1.0 + float(np.sum((y - lowest) ** 2))
 
     monkeypatch.setattr(photo_consistency, "_self_cost", cost)
-    params, problem = _Parameters(np.eye(4), np.eye(6)), SimpleNamespace(grays=[None] * 4)
+    params, problem = _Parameters(np.eye(4), np.eye(7, 6)), SimpleNamespace(grays=[None] * 4)
     walks_back = lambda problem, params, y, frames, xtol: np.zeros(6)  # noqa: E731
     monkeypatch.setattr(photo_consistency, "_search", walks_back)
     y = _descend_translations(problem, params, np.zeros(6))
@@ -205,10 +240,10 @@ class _Bowl:
         self.grays = [None] * len(frame_offsets)
         self.curvature, self.offsets, self.lowest = curvature, frame_offsets, lowest
 
-    def observations(self, T: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    def observations(self, T: np.ndarray, frames: np.ndarray, stride: int, shift_s: float) -> np.ndarray:
         return frames
 
-    def cost(self, T: np.ndarray, frames: np.ndarray) -> float:
+    def cost(self, T: np.ndarray, frames: np.ndarray, shift_s: float) -> float:
         y = np.r_[Rotation.from_matrix(T[:3, :3]).as_rotvec(degrees=True), T[:3, 3] * 10]
         per_frame = [0.5 * self.curvature @ (y - self.offsets[i]) ** 2 for i in frames]
         return self.lowest + float(np.mean(per_frame))
@@ -219,10 +254,11 @@ def test_the_spread_adds_how_far_the_cost_stays_within_its_tolerance() -> None:
     minimum: the region where the cost rises by under COST_TOLERANCE is in the covariance, the
     wider the flatter the cost, and no wider than the search's reach where it is flat."""
     curvature = np.array([0.04, 0.04, 0.01, 0.2, 0.05, 0.2])
-    params = _Parameters(np.eye(4), np.eye(6))
+    params = _Parameters(np.eye(4), np.eye(7, 6))
     jackknife, tolerance = _covariance(_Bowl(curvature, np.zeros((10, 6))), params, np.zeros(6))
     np.testing.assert_allclose(jackknife, 0.0, atol=1e-12)
-    np.testing.assert_allclose(np.diag(tolerance), 2 * COST_TOLERANCE * 0.02 / curvature, rtol=1e-3)
+    expected = np.r_[2 * COST_TOLERANCE * 0.02 / curvature, 0.0]  # nothing along the time, not searched
+    np.testing.assert_allclose(np.diag(tolerance), expected, rtol=1e-3)
 
     flat = curvature.copy()
     flat[4] = 0.0  # no rise along the camera's y
@@ -236,8 +272,29 @@ def test_the_spread_adds_how_far_the_cost_stays_within_its_tolerance() -> None:
     assert jackknife[3, 3] > 1e-3 and np.allclose(np.delete(np.diag(jackknife), 3), 0.0, atol=1e-9)
 
 
+def test_the_time_offset_is_searched_with_the_extrinsic() -> None:
+    """A bowl whose lowest point is 5 ms later than the offset used, with the time as the
+    search's seventh coefficient: its coefficient counts TIME_UNIT_S, its bounds are the window
+    given, and the covariance has its curvature's region along it."""
+    params = _Parameters(np.eye(4), _observable_basis(None, timed=True), time_reach=0.03 / TIME_UNIT_S)
+    y = np.r_[np.zeros(6), 0.005 / TIME_UNIT_S]
+    assert params.shift_s(y) == pytest.approx(0.005)
+    np.testing.assert_allclose(params.pose(y), np.eye(4))
+    assert params.bounds()[6] == pytest.approx((-3.0, 3.0))
+    assert params.bounds()[0] == (-SEARCH_REACH[0], SEARCH_REACH[0])
+    assert params.per_column(1.0, 2.0, 3.0).tolist() == [1.0] * 3 + [2.0] * 3 + [3.0]
+
+    class TimedBowl(_Bowl):
+        def cost(self, T: np.ndarray, frames: np.ndarray, shift_s: float) -> float:
+            return super().cost(T, frames, shift_s) + 0.5 * 0.1 * (shift_s / TIME_UNIT_S - 0.5) ** 2
+
+    curvature = np.array([0.04, 0.04, 0.01, 0.2, 0.05, 0.2])
+    _, tolerance = _covariance(TimedBowl(curvature, np.zeros((10, 6))), params, np.r_[np.zeros(6), 0.5])
+    assert tolerance[6, 6] == pytest.approx(2 * COST_TOLERANCE * 0.02 / 0.1, rel=1e-3)
+
+
 def test_the_spread_is_the_larger_part_for_the_rotation_and_for_the_translation() -> None:
-    jackknife = np.array([0.3, 0.0, 0.0, 0.1, 0.1, 0.0])  # stretches disagree in rotation
-    tolerance = np.array([0.1, 0.1, 0.1, 0.0, 0.3, 0.0])  # the cost is flat along one translation
-    np.testing.assert_array_equal(_spread(jackknife, tolerance), [0.3, 0.0, 0.0, 0.0, 0.3, 0.0])
-    np.testing.assert_array_equal(_spread(tolerance, jackknife), [0.3, 0.0, 0.0, 0.0, 0.3, 0.0])
+    jackknife = np.array([0.3, 0.0, 0.0, 0.1, 0.1, 0.0, 0.2])  # stretches disagree in rotation
+    tolerance = np.array([0.1, 0.1, 0.1, 0.0, 0.3, 0.0, 0.1])  # the cost is flat along one translation
+    np.testing.assert_array_equal(_spread(jackknife, tolerance), [0.3, 0.0, 0.0, 0.0, 0.3, 0.0, 0.2])
+    np.testing.assert_array_equal(_spread(tolerance, jackknife), [0.3, 0.0, 0.0, 0.0, 0.3, 0.0, 0.2])

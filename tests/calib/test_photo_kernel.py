@@ -52,8 +52,16 @@ def test_the_compiled_sums_are_the_numpy_sums(blur: float, monkeypatch: pytest.M
     for step in range(4):  # the start and extrinsics that move points off their images
         turn = Rotation.from_rotvec(np.deg2rad([0.5, -1.0, 2.0]) * step).as_matrix()
         T = make_transform(turn, np.array([0.03, -0.02, 0.05]) * step)
-        total, square, count = problem.point_sums(T, obs)
-        k_total, k_square, k_count = problem.kernel_point_sums(photo_kernel.photo_extension(), T, obs)
+        # Each frame placed elsewhere too (a time offset moves each along its own motion).
+        nudges = [
+            make_transform(
+                Rotation.from_rotvec([0, 0.002 * k * step, 0]).as_matrix(), (0.01 * k * step, 0, 0)
+            )
+            for k in range(len(problem.poses))
+        ]
+        moves = obs.transforms(T, problem.poses @ np.stack(nudges))
+        total, square, count = problem.point_sums(moves, obs)
+        k_total, k_square, k_count = problem.kernel_point_sums(photo_kernel.photo_extension(), moves, obs)
         np.testing.assert_array_equal(k_count, count)
         assert (count < obs.point_counts).any() == (step > 0)
         # OpenCV's bilinear samples are at 1/32 px, the kernel's exact: the sums of up to six
@@ -74,7 +82,7 @@ def test_the_numpy_sums_stand_in_without_a_compiler(monkeypatch: pytest.MonkeyPa
     problem = _room_problem()
     obs = problem.observations(np.eye(4), np.arange(6))
     spread, between = problem.spreads(np.eye(4), obs)
-    total, square, count = problem.point_sums(np.eye(4), obs)
+    total, square, count = problem.point_sums(obs.transforms(np.eye(4)), obs)
     good = count >= photo_consistency.MIN_VIEWS
     mean, mean_square = total[good] / count[good], square[good] / count[good]
     np.testing.assert_array_equal(spread, np.maximum(mean_square - mean**2, 0))
