@@ -48,6 +48,11 @@ CONSISTENCY_FRAMES = 20
 LIDAR_MOTION = ("auto", "imu", "odometry")
 #: Half-width of the interval (seconds) over which the LiDAR's speed at a frame is measured.
 SPEED_WINDOW_S = 0.05
+#: The photo-consistency searches the time offset too where the motion leaves it at most this
+#: far off (s; :func:`offset_error`): 29 ms on the hand-held office whose motion refused the
+#: offset (the search then used 0 s, the truth 15 ms). Past it (no estimate at all: the whole
+#: ±0.5 s) the offset is taken as used and its doubt stays.
+RETIME_REACH_S = 0.05
 
 
 def calibrate_time(
@@ -131,10 +136,11 @@ def motion_guess(time_result: TimeOffsetResult) -> np.ndarray | None:
     """A rough ``T_cam_lidar`` ``(4, 4)`` from the recording alone: the rotation that maps the
     LiDAR's angular velocity onto the camera's (fitted with the time offset, hand-eye on rates)
     and a zero translation (one rig's sensors sit within decimetres of each other). None when the
-    motion did not pin the time offset (too little rotation), since the rotation then means nothing.
+    rates do not fit (too little rotation, a weak correlation: the rotation then means nothing),
+    or the offset is too unsure for the extrinsic's search to pin it (:data:`RETIME_REACH_S`).
     """
     rotation = time_result.extra.get("R_cam_lidar_from_motion")
-    if time_result.verdict != "ok" or rotation is None:
+    if rotation is None or offset_error(time_result, time_result.time_offset_s) > RETIME_REACH_S:
         return None
     T = np.eye(4)
     T[:3, :3] = np.asarray(rotation, dtype=np.float64)
@@ -160,7 +166,7 @@ def consistency_frames(
     covered = lidar_map.trajectory.covers(t_ns)
     poses = lidar_map.trajectory.interpolate(t_ns[covered]) if covered.any() else np.zeros((0, 4, 4))
     return [
-        ConsistencyFrame(data.frames[i].image, pose, lidar_map.moving_near(int(t)))
+        ConsistencyFrame(data.frames[i].image, pose, lidar_map.moving_near(int(t)), int(t))
         for i, t, pose in zip(np.asarray(indices)[covered], t_ns[covered], poses, strict=True)
     ]
 
@@ -230,7 +236,12 @@ def session_extrinsic(
         return refine_extrinsic(extrinsic_pairs(data, time_offset_s, motion), camera, T_init)
     indices = calm_frames(data, motion, CONSISTENCY_FRAMES)
     frames = consistency_frames(data, lidar_map, time_offset_s, indices)
-    result = photo_consistency_extrinsic(frames, camera, lidar_map, T_init, search_straight)
+    reach = offset_error_s if offset_error_s <= RETIME_REACH_S else 0.0
+    result = photo_consistency_extrinsic(frames, camera, lidar_map, T_init, search_straight, reach)
+    if (shift := result.extra.get("time_offset_shift")) is not None:
+        shift["time_offset_s"] = time_offset_s + shift["shift_s"]
+        if not shift["at_reach"]:  # else the offset may lie past the window: its doubt stays
+            time_offset_s, offset_error_s = shift["time_offset_s"], shift["interval_95_s"]
     frame_t = frame_times(data)[indices]
     if doubts := timing_reasons(frame_t, lidar_map.trajectory, motion, time_offset_s, offset_error_s):
         result.reasons += doubts
@@ -300,7 +311,8 @@ def calibrate_session(
             "verdict": "not run",
             "reasons": [
                 "no rough T_cam_lidar: give --init (or a bag with /tf_static), or record with "
-                "enough rotation for the motion to give one (the time offset above is not ok)"
+                "enough rotation for the motion to give one (the camera's and the LiDAR's angular "
+                "velocities above did not fit, or left the time offset too unsure)"
             ],
         }
     else:
@@ -325,6 +337,17 @@ def calibrate_session(
         report["extrinsic"]["applied"] = result.verdict == "ok"
         if result.verdict == "ok":
             calibration.T_cam_lidar = result.T_cam_lidar
+        if (searched := result.extra.get("time_offset_shift")) is not None:
+            # An ok extrinsic vouches for the offset its frames were placed with.
+            applied = result.verdict == "ok" and not searched["at_reach"]
+            report["time"]["with_the_extrinsic"] = {
+                "time_offset_s": searched["time_offset_s"],
+                "interval_95_s": searched["interval_95_s"],
+                "at_reach": searched["at_reach"],
+                "applied": applied,
+            }
+            if applied:
+                calibration.time_offset_s = searched["time_offset_s"]
     calibration.quality = {"time": report["time"], "extrinsic": report["extrinsic"]}
     return calibration, report
 
@@ -351,16 +374,31 @@ def report_lines(report: dict[str, Any]) -> list[str]:
     given = report.get("extrinsic_init")  # "--init", a /tf_static description, the motion, or absent
     for step in ("time", "extrinsic"):
         block = report[step]
+        searched = block.get("with_the_extrinsic", {})
         if step == "extrinsic":
-            kept = f"the value from {given}"
+            kept = f"the value from {given} is kept"
+        elif searched.get("applied"):
+            kept = "the offset searched with the extrinsic is used"
         else:
-            kept = "the value from --init" if given == "--init" else "0 s"
+            kept = ("the value from --init" if given == "--init" else "0 s") + " is kept"
         lines.append(
             f"{step}: {block['verdict']}"
             + _interval_text(block)
             + ("" if not block["reasons"] else " (" + "; ".join(block["reasons"]) + ")")
-            + (f" — not applied, {kept} is kept" if block.get("applied") is False else "")
+            + (f" — not applied, {kept}" if block.get("applied") is False else "")
         )
+        if searched:
+            lines.append(
+                f"time offset searched with the extrinsic: {searched['time_offset_s'] * 1e3:.1f} ms"
+                + _interval_text(searched)
+                + (
+                    " — applied"
+                    if searched["applied"]
+                    else " — not applied (at the edge of the window searched: it may lie past it)"
+                    if searched["at_reach"]
+                    else " — not applied (the extrinsic is not ok)"
+                )
+            )
     if "init_holds" in report:
         lines.append(f"--init: {report['init_holds']}")
     if given is not None:

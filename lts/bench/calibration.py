@@ -129,6 +129,7 @@ def _trial(
         # What the spread is made of, where the method says (the photo-consistency's jackknife and cost
         # tolerance): a coverage can be told for each.
         "std_parts": result.extra.get("std_parts"),
+        "time_offset_shift": result.extra.get("time_offset_shift"),
         "success": within,
         "false_ok": result.verdict == "ok" and not within,
         # A trial without an interval (axes kept from the guess: infinite spread) covers nothing.
@@ -206,6 +207,9 @@ def _session_rows(
     for guess in guesses:
         T_init = _guess_for(guess, truth.T_cam_lidar, seed, motion_start)
         rows.append({**session, "guess": guess.label, **_trial(refine, truth.T_cam_lidar, T_init)})
+        if (shift := rows[-1].pop("time_offset_shift", None)) is not None:
+            searched = shift["time_offset_s"]
+            rows[-1]["time_offset_searched_error_ms"] = abs(searched - truth.time_offset_s) * 1e3
         log(_trial_line(rows[-1]))
     return rows
 

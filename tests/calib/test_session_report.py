@@ -32,3 +32,27 @@ def test_each_step_says_its_95_percent_interval_where_it_has_one() -> None:
         "time: not run (no motion) — not applied, the value from --init is kept",
         "extrinsic: poorly constrained (why) — not applied, the value from --init is kept",
     ]
+
+
+def test_the_offset_searched_with_the_extrinsic_follows_the_motions() -> None:
+    """The motion's offset refused, the one the extrinsic's search found applied with it."""
+    searched = {"time_offset_s": 0.0141, "interval_95_s": 0.0032, "at_reach": False, "applied": True}
+    report = {
+        "time": {
+            "verdict": "poorly constrained",
+            "reasons": ["varies"],
+            "applied": False,
+            "with_the_extrinsic": searched,
+        },
+        "extrinsic": {"verdict": "ok", "reasons": [], "applied": True},
+    }
+    assert report_lines(report)[:2] == [
+        "time: poorly constrained (varies) — not applied, the offset searched with the extrinsic is used",
+        "time offset searched with the extrinsic: 14.1 ms ±3.2 ms (95 %) — applied",
+    ]
+    searched.update(applied=False, at_reach=True)
+    assert report_lines(report)[:2] == [
+        "time: poorly constrained (varies) — not applied, 0 s is kept",
+        "time offset searched with the extrinsic: 14.1 ms ±3.2 ms (95 %) — not applied (at the edge of the "
+        "window searched: it may lie past it)",
+    ]
