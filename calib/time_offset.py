@@ -195,7 +195,8 @@ def estimate_time_offset(
     n = len(blocks)
     std = float(np.sqrt((n - 1) / n * np.sum((leave_one_out - leave_one_out.mean()) ** 2)))
 
-    if correlation < MIN_CORRELATION:
+    weak, at_limit = correlation < MIN_CORRELATION, abs(offset) >= max_offset_s - 2 * GRID_STEP_S
+    if weak:
         reasons.append(
             f"camera and LiDAR motion correlate weakly (r = {correlation:.2f} < {MIN_CORRELATION})"
         )
@@ -204,7 +205,7 @@ def estimate_time_offset(
             f"offset varies by ±{std * 1e3:.1f} ms over the recording "
             f"(limit {MAX_STD_S * 1e3:.0f} ms): motion too uniform"
         )
-    if abs(offset) >= max_offset_s - 2 * GRID_STEP_S:
+    if at_limit:
         reasons.append(f"offset at the search limit ±{max_offset_s} s")
     keep = (t_cam - offset >= span[0]) & (t_cam - offset <= span[1])
     R = kabsch(w_cam[keep], spline(t_cam[keep] - offset))
@@ -216,6 +217,7 @@ def estimate_time_offset(
         correlation,
         speed_std,
         len(w_cam),
-        extra={"R_cam_lidar_from_motion": R.tolist()},
+        # The rotation between the rates means something where they fit, however wide the spread.
+        extra={} if weak or at_limit else {"R_cam_lidar_from_motion": R.tolist()},
         interval_95=jackknife_interval_95(n),
     )

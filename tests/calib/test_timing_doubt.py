@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib.session_calib import offset_error, timing_reasons
+from calib.session_calib import RETIME_REACH_S, motion_guess, offset_error, timing_reasons
 from calib.time_offset import MAX_OFFSET_S, TimeOffsetResult
 from rig.trajectory import Trajectory
 
@@ -47,3 +47,18 @@ def test_frames_that_move_too_far_within_the_doubt_are_named():
     (reason,) = timing_reasons(frame_t, _straight(2.0), still, 0.0, 0.02)
     assert "moving 2.00 m/s" in reason and "4.0 cm" in reason
     assert timing_reasons(frame_t, _straight(2.0), None, 0.0, 0.01) == []  # 2 cm
+
+
+def test_the_motions_rotation_is_a_guess_where_the_extrinsic_search_can_pin_the_offset():
+    """The rates fit (their rotation is in the result) but the offset's spread is over its limit:
+    the rotation is still a rough extrinsic, as long as the search's window covers the doubt."""
+    turn = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+
+    def estimate(std_s: float, verdict: str, fitted: bool = True) -> TimeOffsetResult:
+        extra = {"R_cam_lidar_from_motion": turn.tolist()} if fitted else {}
+        return TimeOffsetResult(0.015, std_s, verdict, [], 0.9, 0.3, 500, extra, interval_95=2.093)
+
+    np.testing.assert_array_equal(motion_guess(estimate(0.002, "ok"))[:3, :3], turn)
+    np.testing.assert_array_equal(motion_guess(estimate(0.0052, "poorly constrained"))[:3, :3], turn)
+    assert RETIME_REACH_S < 2.093 * 0.03 and motion_guess(estimate(0.03, "poorly constrained")) is None
+    assert motion_guess(estimate(0.002, "poorly constrained", fitted=False)) is None  # weak correlation
