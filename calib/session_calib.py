@@ -53,6 +53,10 @@ SPEED_WINDOW_S = 0.05
 #: offset (the search then used 0 s, the truth 15 ms). Past it (no estimate at all: the whole
 #: ±0.5 s) the offset is taken as used and its doubt stays.
 RETIME_REACH_S = 0.05
+#: ... and only where that doubt could move the fastest frame by more than this (degrees,
+#: metres: the accuracy aimed at): elsewhere the search costs time and changes nothing that
+#: matters (on the virtual room, turning at most about 20°/s, the trials took twice as long).
+RETIME_ABOVE = (0.1, 0.01)
 
 
 def calibrate_time(
@@ -181,6 +185,27 @@ def offset_error(time_result: TimeOffsetResult, time_offset_s: float) -> float:
     return min(abs(time_result.time_offset_s - time_offset_s) + reach, MAX_OFFSET_S)
 
 
+def timing_drift(
+    frame_t: np.ndarray,
+    trajectory: Trajectory,
+    motion: tuple[np.ndarray, np.ndarray] | None,
+    time_offset_s: float,
+    error_s: float,
+) -> tuple[float, float, float, float]:
+    """How far the frames taken at ``frame_t`` ``(K,)`` (camera clock, s) may be from where the
+    time offset ``time_offset_s`` places them when it is ``error_s`` off: the fastest frame's turn
+    (degrees: its angular speed from ``motion``, camera times and rad/s, × ``error_s``) and move
+    (metres: its speed along the LiDAR's ``trajectory`` × ``error_s``); then that angular speed
+    (degrees/s) and speed (m/s)."""
+    turn = np.interp(frame_t, motion[0], motion[1]) if motion is not None and len(motion[0]) else np.zeros(1)
+    t_ns = np.round((frame_t - time_offset_s) * 1e9).astype(np.int64)
+    step = round(SPEED_WINDOW_S * 1e9)
+    ends = [trajectory.interpolate(t_ns + side, clamp=True)[:, :3, 3] for side in (-step, step)]
+    speed = float((np.linalg.norm(ends[1] - ends[0], axis=1) / (2 * SPEED_WINDOW_S)).max())
+    turn_deg = float(np.degrees(turn.max()))
+    return turn_deg * error_s, speed * error_s, turn_deg, speed
+
+
 def timing_reasons(
     frame_t: np.ndarray,
     trajectory: Trajectory,
@@ -189,22 +214,16 @@ def timing_reasons(
     error_s: float,
 ) -> list[str]:
     """Why an extrinsic over frames taken at ``frame_t`` ``(K,)`` (camera clock, s) cannot vouch
-    for itself when the time offset it used may be ``error_s`` off: the fastest frame turns by its
-    angular speed (``motion``: camera times, rad/s) × ``error_s`` and moves by its speed along the
-    LiDAR's ``trajectory`` × ``error_s``. Past the extrinsic's own limits the frames' LiDAR poses
-    are wrong by more than the result may be, in a way its jackknife over frames cannot see (they
-    all share the offset)."""
-    turn = np.interp(frame_t, motion[0], motion[1]) if motion is not None and len(motion[0]) else np.zeros(1)
-    t_ns = np.round((frame_t - time_offset_s) * 1e9).astype(np.int64)
-    step = round(SPEED_WINDOW_S * 1e9)
-    ends = [trajectory.interpolate(t_ns + side, clamp=True)[:, :3, 3] for side in (-step, step)]
-    speed = np.linalg.norm(ends[1] - ends[0], axis=1) / (2 * SPEED_WINDOW_S)
-    rotation_deg, translation_m = float(np.degrees(turn.max()) * error_s), float(speed.max() * error_s)
+    for itself when the time offset it used may be ``error_s`` off (:func:`timing_drift`): past
+    the extrinsic's own limits the frames' LiDAR poses are wrong by more than the result may be,
+    in a way its jackknife over frames cannot see (they all share the offset)."""
+    drift = timing_drift(frame_t, trajectory, motion, time_offset_s, error_s)
+    rotation_deg, translation_m, turn, speed = drift
     if rotation_deg <= MAX_ROT_STD_DEG and translation_m <= MAX_TRANS_STD_M:
         return []
     return [
         f"the time offset used ({time_offset_s * 1e3:.1f} ms) may be {error_s * 1e3:.0f} ms off: the "
-        f"fastest frame (turning {np.degrees(turn.max()):.0f}°/s, moving {speed.max():.2f} m/s) would "
+        f"fastest frame (turning {turn:.0f}°/s, moving {speed:.2f} m/s) would "
         f"then be {rotation_deg:.2f}° and {translation_m * 100:.1f} cm from where it was taken (limits "
         f"{MAX_ROT_STD_DEG}° / {MAX_TRANS_STD_M * 100:.1f} cm); record turns that speed up and slow "
         "down to pin the offset, or give it with --init"
@@ -236,13 +255,15 @@ def session_extrinsic(
         return refine_extrinsic(extrinsic_pairs(data, time_offset_s, motion), camera, T_init)
     indices = calm_frames(data, motion, CONSISTENCY_FRAMES)
     frames = consistency_frames(data, lidar_map, time_offset_s, indices)
-    reach = offset_error_s if offset_error_s <= RETIME_REACH_S else 0.0
+    frame_t = frame_times(data)[indices]
+    drift = timing_drift(frame_t, lidar_map.trajectory, motion, time_offset_s, offset_error_s)
+    matters = drift[0] > RETIME_ABOVE[0] or drift[1] > RETIME_ABOVE[1]
+    reach = offset_error_s if matters and offset_error_s <= RETIME_REACH_S else 0.0
     result = photo_consistency_extrinsic(frames, camera, lidar_map, T_init, search_straight, reach)
     if (shift := result.extra.get("time_offset_shift")) is not None:
         shift["time_offset_s"] = time_offset_s + shift["shift_s"]
         if not shift["at_reach"]:  # else the offset may lie past the window: its doubt stays
             time_offset_s, offset_error_s = shift["time_offset_s"], shift["interval_95_s"]
-    frame_t = frame_times(data)[indices]
     if doubts := timing_reasons(frame_t, lidar_map.trajectory, motion, time_offset_s, offset_error_s):
         result.reasons += doubts
         result.verdict = "poorly constrained"
