@@ -208,8 +208,9 @@ def _session_rows(
         T_init = _guess_for(guess, truth.T_cam_lidar, seed, motion_start)
         rows.append({**session, "guess": guess.label, **_trial(refine, truth.T_cam_lidar, T_init)})
         if (shift := rows[-1].pop("time_offset_shift", None)) is not None:
-            searched = shift["time_offset_s"]
-            rows[-1]["time_offset_searched_error_ms"] = abs(searched - truth.time_offset_s) * 1e3
+            error_s = abs(shift["time_offset_s"] - truth.time_offset_s)
+            rows[-1]["time_offset_searched_error_ms"] = error_s * 1e3
+            rows[-1]["time_offset_searched_covered"] = bool(error_s <= shift["interval_95_s"])
         log(_trial_line(rows[-1]))
     return rows
 
