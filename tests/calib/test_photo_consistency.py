@@ -167,18 +167,18 @@ def test_a_flat_valley_along_a_translation_is_named(monkeypatch) -> None:
     names y, and only y; rotations are not probed."""
     curvature = np.array([1.0, 1.0, 1.0, 5.0, MIN_RISE / 3, 5.0])  # per (PROFILE_STEP_M)^2
 
-    def cost(problem, params, y) -> float:
+    def cost(y: np.ndarray) -> float:
         return 1.0 + float(curvature @ (y / (PROFILE_STEP_M * 10.0)) ** 2)
 
-    monkeypatch.setattr(photo_consistency, "_self_cost", cost)
+    monkeypatch.setattr(photo_consistency, "_paired_costs", lambda problem, params, a, b: (cost(a), cost(b)))
     monkeypatch.setattr(photo_consistency, "_refit_rotation", lambda problem, params, y: y)  # no coupling
     params = _Parameters(np.eye(4), np.eye(7, 6))
-    reasons = _flat_translations(None, params, np.zeros(6), 1.0)
+    reasons = _flat_translations(None, params, np.zeros(6))
     assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "1.0 %" in reasons[0]
     curvature[4] = 2 * MIN_RISE
-    assert _flat_translations(None, params, np.zeros(6), 1.0) == []
+    assert _flat_translations(None, params, np.zeros(6)) == []
     curvature[4] = -MIN_RISE  # a result that is no minimum along y: the cost falls 3 % there
-    reasons = _flat_translations(None, params, np.zeros(6), 1.0)
+    reasons = _flat_translations(None, params, np.zeros(6))
     assert len(reasons) == 1 and "lowers the cost by 3.0 %" in reasons[0] and "no minimum" in reasons[0]
 
 
@@ -190,7 +190,13 @@ class _TiltedValley:
 
     grays = (None,)  # one frame
 
-    def observations(self, T: np.ndarray, frames: np.ndarray, stride: int, shift_s: float) -> None:
+    def at_shift(self, shift_s: float) -> None:
+        assert shift_s == 0.0
+
+    def visible(self, T: np.ndarray) -> np.ndarray:
+        return np.ones((1, 1), dtype=bool)
+
+    def observations(self, T: np.ndarray, frames: np.ndarray, stride: int, shift_s: float, seen=None) -> None:
         return None
 
     def cost(self, T: np.ndarray, obs: None, shift_s: float) -> float:
@@ -204,10 +210,41 @@ def test_a_valley_that_a_turn_follows_is_named_with_the_rotation_refitted(monkey
     """On the 20 s room a result 13 cm above the truth rose 3.2 % 10 cm back with its rotation held
     and said ok; with the rotation re-fitted to the step the rise is 1.9 %."""
     params = _Parameters(np.eye(4), np.eye(7, 6))
-    reasons = _flat_translations(_TiltedValley(), params, np.zeros(6), 1.0)
+    reasons = _flat_translations(_TiltedValley(), params, np.zeros(6))
     assert len(reasons) == 1 and "[0.0, 1.0, 0.0]" in reasons[0] and "rotation following" in reasons[0]
     monkeypatch.setattr(photo_consistency, "_refit_rotation", lambda problem, params, y: y)
-    assert _flat_translations(_TiltedValley(), params, np.zeros(6), 1.0) == []
+    assert _flat_translations(_TiltedValley(), params, np.zeros(6)) == []
+
+
+class _SeenByPlace:
+    """A stand-in problem of one frame and four map points: at the identity the first three are in
+    view, elsewhere the last three. Its cost counts the points it is given and adds how far the
+    camera moved along its x (m)."""
+
+    grays = (None,)
+
+    def at_shift(self, shift_s: float) -> None:
+        assert shift_s == 0.0
+
+    def visible(self, T: np.ndarray) -> np.ndarray:
+        seen = np.zeros((1, 4), dtype=bool)
+        seen[0, :3] = True
+        return seen if np.allclose(T, np.eye(4)) else np.roll(seen, 1, axis=1)
+
+    def observations(self, T: np.ndarray, frames: np.ndarray, stride: int, shift_s: float, seen=None):
+        return seen
+
+    def cost(self, T: np.ndarray, obs: np.ndarray, shift_s: float) -> float:
+        return float(obs.sum()) + T[0, 3]
+
+
+def test_two_places_are_compared_on_the_points_both_see() -> None:
+    """The flat check scores a result and a step from it on the two points in view at both, each
+    place with its own pose (scored each on its own points, the place seeing more wins)."""
+    params = _Parameters(np.eye(4), np.eye(7, 6))
+    moved = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0])  # 1 dm along x
+    here, there = photo_consistency._paired_costs(_SeenByPlace(), params, np.zeros(6), moved)
+    assert here == pytest.approx(2.0) and there == pytest.approx(2.1)
 
 
 def test_the_last_descent_walks_a_flat_valley_and_keeps_the_better_end(monkeypatch) -> None:
