@@ -185,11 +185,8 @@ class _Timing:
 
     def poses(self, shift_s: float) -> np.ndarray:
         """``(F, 4, 4)`` the LiDAR's poses at the frames with the time offset ``shift_s`` larger
-        (a camera stamp ``t`` is ``t - offset`` on the LiDAR clock), on the spline through the
-        map's poses (:meth:`~rig.trajectory.Trajectory.interpolate`): without jumps of velocity
-        at the poses, the cost's curvature along the offset does not jump where a frame lies
-        within a finite-difference step of one."""
-        return self.trajectory.interpolate(self.t_ns - round(shift_s * 1e9), clamp=True, smooth=True)
+        (a camera stamp ``t`` is ``t - offset`` on the LiDAR clock)."""
+        return self.trajectory.interpolate(self.t_ns - round(shift_s * 1e9), clamp=True)
 
 
 class _Problem:

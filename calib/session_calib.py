@@ -165,14 +165,11 @@ def consistency_frames(
     data: SessionData, lidar_map: LidarMap, time_offset_s: float, indices: Sequence[int]
 ) -> list[ConsistencyFrame]:
     """The frames ``indices`` (:func:`calm_frames`) within the map's trajectory, each with the
-    LiDAR's pose when it was taken (camera stamps moved onto the LiDAR clock by the offset; the
-    spline through the map's poses, :meth:`~rig.trajectory.Trajectory.interpolate`) and the
-    moving things measured then (:meth:`~calib.lidar_map.LidarMap.moving_near`)."""
+    LiDAR's pose when it was taken (camera stamps moved onto the LiDAR clock by the offset) and
+    the moving things measured then (:meth:`~calib.lidar_map.LidarMap.moving_near`)."""
     t_ns = np.round((frame_times(data)[indices] - time_offset_s) * 1e9).astype(np.int64)
     covered = lidar_map.trajectory.covers(t_ns)
-    poses = (
-        lidar_map.trajectory.interpolate(t_ns[covered], smooth=True) if covered.any() else np.zeros((0, 4, 4))
-    )
+    poses = lidar_map.trajectory.interpolate(t_ns[covered]) if covered.any() else np.zeros((0, 4, 4))
     return [
         ConsistencyFrame(data.frames[i].image, pose, lidar_map.moving_near(int(t)), int(t))
         for i, t, pose in zip(np.asarray(indices)[covered], t_ns[covered], poses, strict=True)

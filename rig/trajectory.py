@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
-from typing import Any
 
 import numpy as np
 
@@ -162,24 +160,16 @@ class Trajectory:
         t = np.asarray(t_ns, dtype=np.int64)
         return (t >= self.t_start_ns) & (t <= self.t_end_ns)
 
-    def interpolate(self, t_ns: np.ndarray | int, *, clamp: bool = False, smooth: bool = False) -> np.ndarray:
-        """Poses at query times: SLERP for rotation, linear for translation; or with ``smooth`` a
-        spline with continuous second derivatives through the poses (cubic in position, SciPy's
-        ``RotationSpline`` in rotation).
+    def interpolate(self, t_ns: np.ndarray | int, *, clamp: bool = False) -> np.ndarray:
+        """Poses at query times: SLERP for rotation, linear for translation.
 
         Args:
             t_ns: query times in ns, scalar or ``(M,)``.
             clamp: hold the first/last pose outside the span instead of raising.
-            smooth: the spline. Between poses 100 ms apart (a 10 Hz LiDAR's) the straight form
-                cuts a turning rig's path: on the virtual rig's true LiDAR trajectories, sampled
-                every 100 ms and looked up in between, the room's robot came out 0.050° off
-                (median; 0.134° at most) and the hand-held office's 0.041° and 1.6 mm; the spline
-                0.013° and 0.000° / 0.05 mm. Its velocity has no jumps at the poses either, so a
-                look-up moved by a small time changes smoothly.
 
         Returns:
             ``(4, 4)`` for a scalar query, else ``(M, 4, 4)``. At a knot time the knot pose is
-            returned exactly (to rounding, with ``smooth``).
+            returned exactly.
 
         Raises:
             OutOfRangeError: a query lies outside ``[t_start, t_end]`` and ``clamp`` is false.
@@ -194,11 +184,6 @@ class Trajectory:
                 "pass clamp=True to hold the end poses"
             )
         t = np.clip(t, self.t_start_ns, self.t_end_ns)
-        if smooth and (splines := self._splines) is not None:
-            positions, rotations = splines
-            seconds = (t - self.t_start_ns) * 1e-9
-            poses = make_transform(rotations(seconds).as_matrix().reshape(-1, 3, 3), positions(seconds))
-            return poses[0] if scalar else poses
         last = len(self) - 1
         # i: the last knot at or before each query; a query on a knot copies it rather than blending.
         i = np.searchsorted(self.t_ns, t, side="right") - 1
@@ -220,20 +205,6 @@ class Trajectory:
             out_R[blend] = (R0 * Rotation.from_rotvec(frac * step)).as_matrix()
         poses = make_transform(out_R, out_p)
         return poses[0] if scalar else poses
-
-    @cached_property
-    def _splines(self) -> tuple[Any, Any] | None:
-        """The position and rotation splines of :meth:`interpolate` (``smooth``) over seconds
-        since the first pose, through the last pose of each stamp; None with a single stamp."""
-        from scipy.interpolate import CubicSpline
-        from scipy.spatial.transform import RotationSpline
-
-        last = np.append(np.diff(self.t_ns) > 0, True)
-        if last.sum() < 2:
-            return None
-        seconds = (self.t_ns[last] - self.t_start_ns) * 1e-9
-        rotations = scipy_rotation().from_matrix(self.rotations[last])
-        return CubicSpline(seconds, self.translations[last]), RotationSpline(seconds, rotations)
 
     def transformed(self, T_left: np.ndarray | None = None, T_right: np.ndarray | None = None) -> Trajectory:
         """Trajectory of ``T_left @ T_i @ T_right`` (e.g. change of world frame / body frame)."""

@@ -69,14 +69,12 @@ def test_session_command_writes_calibration(room_session: Path, tmp_path: Path) 
     # 10 s room sessions of lts bench calib), but for the height: the robot turns about the
     # vertical only, and on this 20 s room the cost along the camera's y has a second valley
     # 10-12 cm above the truth, 2 % dearer at the true rotation. Where the result ends along it
-    # (3 or 10-11 cm, with time offsets 0.5 ms apart, or the frames placed on a spline through
-    # the map's poses instead of straight between them) it must say that it is no clear minimum
-    # along y.
+    # (3 or 11 cm, with time offsets 0.5 ms apart) it must say the frames hardly tell it.
     assert np.degrees(angle) < 0.5
-    flat = [r for r in extrinsic["reasons"] if r.startswith("moving the camera 10 cm along [0.0, 1.0, 0.0]")]
+    flat = [r for r in extrinsic["reasons"] if "hardly tell the translation" in r]
     error_cm = 100 * (estimate[:3, 3] - truth.T_cam_lidar[:3, 3])
     if flat:
-        assert extrinsic["verdict"] != "ok", flat
+        assert extrinsic["verdict"] != "ok" and "[0.0, 1.0, 0.0]" in flat[0], flat
         assert np.hypot(error_cm[0], error_cm[2]) < 5.0, error_cm
     else:
         assert translation_m < 0.05
