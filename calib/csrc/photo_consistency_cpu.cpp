@@ -32,11 +32,14 @@ void check(const torch::Tensor& t, const char* name, torch::ScalarType dtype, in
 
 }  // namespace
 
-// images (F*height, W) float32: the frames' grey levels stacked; xyz (M, 3) float32: each
-// observation's map point in its frame's LiDAR coordinates, grouped by frame into runs (first
-// index, length and the first row of the run's frame in `images`: (R,) int64 each); moves
-// (R, 3, 4) float32: each run's [R | t] from its points' coordinates into its camera; point (M,)
-// int64: each observation's point among n_points.
+// images (F*height, W) float32: the frames' grey levels stacked; the observations grouped by
+// frame into runs (first index, length and the first row of the run's frame in `images`: (R,)
+// int64 each); moves (R, 3, 4) float32: each run's [R | t] from its points' coordinates into its
+// camera; point (M,) int64: each observation's point among n_points; sampled (M,) int64: the
+// observations in the order they are sampled, each run's own permuted (by where they fall in
+// the image, so that the samples of a run walk its image instead of jumping about it: 1.8x
+// faster on 960-wide images); xyz (3, M) float32: the map point of observation sampled[k] in its
+// frame's LiDAR coordinates in column k (coordinates in rows: the projection vectorises). The sums are added in observation order whatever the sampling order.
 // Returns the per-point sums (n_points,) float64 of the standardised grey levels and of their
 // squares, and the count (n_points,) int64 of the observations inside their image.
 std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::Tensor& xyz,
@@ -44,7 +47,7 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
                                       double cy, int64_t height, const torch::Tensor& run_starts,
                                       const torch::Tensor& run_lengths,
                                       const torch::Tensor& run_rows, const torch::Tensor& point,
-                                      int64_t n_points) {
+                                      const torch::Tensor& sampled, int64_t n_points) {
   check(images, "images", torch::kFloat32, 2);
   check(xyz, "xyz", torch::kFloat32, 2);
   check(moves, "moves", torch::kFloat32, 3);
@@ -52,19 +55,24 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
   check(run_lengths, "run_lengths", torch::kInt64, 1);
   check(run_rows, "run_rows", torch::kInt64, 1);
   check(point, "point", torch::kInt64, 1);
+  check(sampled, "sampled", torch::kInt64, 1);
   const int64_t m = point.size(0), n_runs = run_starts.size(0), width = images.size(1);
-  TORCH_CHECK(xyz.size(0) == m && xyz.size(1) == 3, "xyz: expected (", m, ", 3)");
+  TORCH_CHECK(xyz.size(0) == 3 && xyz.size(1) == m, "xyz: expected (3, ", m, ")");
   TORCH_CHECK(moves.size(0) == n_runs && moves.size(1) == 3 && moves.size(2) == 4, "moves: expected (",
               n_runs, ", 3, 4)");
   TORCH_CHECK(run_lengths.size(0) == n_runs && run_rows.size(0) == n_runs, "runs: lengths differ");
+  TORCH_CHECK(sampled.size(0) == m, "sampled: expected (", m, ",)");
 
   const float* img = images.data_ptr<float>();
-  const float* P = xyz.data_ptr<float>();
+  const float* X = xyz.data_ptr<float>();
+  const float* Y = X + m;
+  const float* Z = Y + m;
   const float* all_moves = moves.data_ptr<float>();
   const int64_t* start = run_starts.data_ptr<int64_t>();
   const int64_t* length = run_lengths.data_ptr<int64_t>();
   const int64_t* first_row = run_rows.data_ptr<int64_t>();
   const int64_t* pt = point.data_ptr<int64_t>();
+  const int64_t* order = sampled.data_ptr<int64_t>();
   for (int64_t r = 0; r < n_runs; ++r) {
     TORCH_CHECK(start[r] >= 0 && length[r] >= 0 && start[r] + length[r] <= m, "run ", r,
                 ": observations outside [0, ", m, ")");
@@ -84,27 +92,28 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
     const float r00 = T[0], r01 = T[1], r02 = T[2], t0 = T[3], r10 = T[4], r11 = T[5], r12 = T[6];
     const float t1 = T[7], r20 = T[8], r21 = T[9], r22 = T[10], t2 = T[11];
     const int64_t begin = start[r], end = start[r] + length[r];
-    double sum = 0.0, sum_sq = 0.0;
-    int64_t n_in = 0;
     // In chunks: the projection of a chunk vectorises; its samples are gathered after it.
     for (int64_t c0 = begin; c0 < end; c0 += kChunk) {
       const int64_t nc = std::min(kChunk, end - c0);
       float us[kChunk], vs[kChunk];
       for (int64_t k = 0; k < nc; ++k) {
-        const float* q = P + 3 * (c0 + k);
-        const float x = r00 * q[0] + r01 * q[1] + r02 * q[2] + t0;
-        const float y = r10 * q[0] + r11 * q[1] + r12 * q[2] + t1;
-        const float z = r20 * q[0] + r21 * q[1] + r22 * q[2] + t2;
+        const float px = X[c0 + k], py = Y[c0 + k], pz = Z[c0 + k];
+        const float x = r00 * px + r01 * py + r02 * pz + t0;
+        const float y = r10 * px + r11 * py + r12 * pz + t1;
+        const float z = r20 * px + r21 * py + r22 * pz + t2;
         const float safe = z > 0.05f ? z : 1.0f;
         const float u = ffx * x / safe + fcx, v = ffy * y / safe + fcy;
-        const bool in = z > 0.05f && u >= 0 && u <= u_max && v >= 0 && v <= v_max;
+        // & not &&: no branches, so that the loop vectorises
+        const bool in = (z > 0.05f) & (u >= 0) & (u <= u_max) & (v >= 0) & (v <= v_max);
         us[k] = in ? u : -1.0f;  // outside: a negative column
         vs[k] = v;
       }
       for (int64_t k = 0; k < nc; ++k) {
+        const int64_t i = order[c0 + k];
+        TORCH_CHECK(i >= begin && i < end, "sampled: ", i, " outside run ", r);
         const float u = us[k], v = vs[k];
         if (u < 0) {
-          g[c0 + k] = std::numeric_limits<double>::quiet_NaN();
+          g[i] = std::numeric_limits<double>::quiet_NaN();
           continue;
         }
         const int64_t x0 = int64_t(u), y0 = int64_t(v);  // u, v >= 0: truncation is floor
@@ -114,12 +123,16 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
         const float* row1 = frame + y1 * width;
         const float top = row0[x0] * (1 - wx) + row0[x1] * wx;
         const float bottom = row1[x0] * (1 - wx) + row1[x1] * wx;
-        const double grey = double(top * (1 - wy) + bottom * wy);
-        g[c0 + k] = grey;
-        sum += grey;
-        sum_sq += grey * grey;
-        ++n_in;
+        g[i] = double(top * (1 - wy) + bottom * wy);
       }
+    }
+    double sum = 0.0, sum_sq = 0.0;
+    int64_t n_in = 0;
+    for (int64_t i = begin; i < end; ++i) {
+      if (std::isnan(g[i])) continue;
+      sum += g[i];
+      sum_sq += g[i] * g[i];
+      ++n_in;
     }
     const double n = double(std::max<int64_t>(n_in, 1));
     const double mean = sum / n;

@@ -74,6 +74,39 @@ def test_the_compiled_sums_are_the_numpy_sums(blur: float, monkeypatch: pytest.M
             assert kernel_cost == pytest.approx(problem.cost(T, obs), rel=1e-4)
 
 
+@pytest.mark.skipif(photo_kernel.photo_extension() is None, reason="no C++ toolchain to build the kernel")
+def test_the_sampling_order_changes_the_speed_not_the_sums() -> None:
+    problem = _room_problem()
+    problem.blur(1.0)
+    frames = np.arange(6)
+    obs = problem.observations(np.eye(4), frames)
+    identity = np.arange(len(obs.point))
+    assert not np.array_equal(obs.sampled, identity)  # sorted by where the points fall
+    T = make_transform(Rotation.from_rotvec(np.deg2rad([0.5, -1.0, 2.0])).as_matrix(), (0.03, -0.02, 0.05))
+    moves = obs.transforms(T)
+    extension = photo_kernel.photo_extension()
+    sums = problem.kernel_point_sums(extension, moves, obs)
+    row = obs.run_frames[obs.run]
+
+    def sampled_in(order: np.ndarray) -> photo_consistency._Observations:
+        return photo_consistency._Observations(
+            obs.xyz, row, obs.point, obs.n_points, problem.height, frames, obs.poses, sampled=order
+        )
+
+    shuffled = np.concatenate([
+        start + np.random.default_rng(7).permutation(length)
+        for start, length in zip(obs.run_starts, obs.run_lengths, strict=True)
+    ])  # fmt: skip
+    for order in (identity, shuffled):
+        again = problem.kernel_point_sums(extension, moves, sampled_in(order))
+        for mine, theirs in zip(again, sums, strict=True):
+            np.testing.assert_array_equal(mine, theirs)
+    crossing = identity.copy()
+    crossing[[0, -1]] = crossing[[-1, 0]]  # two observations swapped between the first and last run
+    with pytest.raises(RuntimeError, match=r"sampled: .* outside run"):
+        problem.kernel_point_sums(extension, moves, sampled_in(crossing))
+
+
 def test_the_numpy_sums_stand_in_without_a_compiler(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.setenv("LTS_CACHE_DIR", str(tmp_path))  # nothing built there yet
     monkeypatch.setenv("CXX", "no-such-compiler")
