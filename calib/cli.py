@@ -283,6 +283,7 @@ def session_command(
     from calib.board_session import board_geometry
     from calib.session_calib import calibrate_session, report_lines
     from rig.calibration import load_calibration, save_calibration
+    from rig.cpu_threads import cpu_threads
 
     guess = load_calibration(init) if init is not None else None
     geometry = board_geometry(board, square, outline) if board is not None else None
@@ -294,6 +295,7 @@ def session_command(
             lidar_motion,
             board=geometry,
             progress=lambda step: status.update(f"calibrating: {step}"),
+            threads=cpu_threads(),
         )
     save_calibration(calibration, out)
     summary = {

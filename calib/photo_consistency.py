@@ -190,7 +190,8 @@ class _Timing:
 
 
 class _Problem:
-    """The frames' working images and the map in each frame's LiDAR coordinates."""
+    """The frames' working images and the map in each frame's LiDAR coordinates; the compiled
+    cost on ``threads`` threads."""
 
     def __init__(
         self,
@@ -198,7 +199,9 @@ class _Problem:
         camera: CameraModel,
         world: np.ndarray,
         timing: _Timing | None = None,
+        threads: int = 1,
     ) -> None:
+        self.threads = threads
         prepared = [working_image(frame.image, camera) for frame in frames]
         self.grays = [gray.astype(np.float32) for gray, _ in prepared]
         self.K = prepared[0][1]
@@ -353,9 +356,9 @@ class _Problem:
         2.4 ms while another process keeps a core busy (NumPy's matrix product waits on OpenBLAS's
         threads); sampled in ``obs.sampled``'s order (by where the points fall in their image) and
         the projection vectorised, the 320 000 of a 20-frame KITTI-size drive at 960 x 290
-        8.7 -> 5.3 ms, with the same sums to the bit. Its bilinear samples are exact where
-        OpenCV's are at 1/32 px, and its sums are added in another order: the sums agree to
-        ~1e-3, the cost to ~1e-6 (relative)."""
+        8.7 -> 5.3 ms, with the same sums to the bit (on any number of :attr:`threads` too). Its
+        bilinear samples are exact where OpenCV's are at 1/32 px, and its sums are added in
+        another order: the sums agree to ~1e-3, the cost to ~1e-6 (relative)."""
         import torch
 
         def tensor(a: np.ndarray, dtype: type) -> torch.Tensor:
@@ -366,7 +369,7 @@ class _Problem:
         sums = extension.point_sums(
             tensor(self.images, np.float32), tensor(obs.xyz_sampled, np.float32), tensor(moves, np.float32),
             float(fx), float(fy), float(cx), float(cy), self.height, *runs, tensor(obs.point, np.int64),
-            tensor(obs.sampled, np.int64), obs.n_points,
+            tensor(obs.sampled, np.int64), obs.n_points, self.threads,
         )  # fmt: skip
         return tuple(s.numpy() for s in sums)
 
@@ -819,6 +822,7 @@ def photo_consistency_extrinsic(
     T_init: np.ndarray,
     search_straight: bool = True,
     offset_reach_s: float = 0.0,
+    threads: int = 1,
 ) -> ExtrinsicResult:
     """Refine ``T_cam_lidar`` ``(4, 4)`` from a rough guess so that the map's points look alike in
     all ``frames``. Never raises on weak data: too few frames or points give the guess back with
@@ -835,12 +839,15 @@ def photo_consistency_extrinsic(
     that direction or a move along it; they look alike in every frame either way. Those two are
     kept from the guess, the other four refined, and the verdict says so; with
     ``search_straight`` False the guess is kept whole without a search (its result could not be
-    applied: 15 s of the quick demo's 3 s straight recording)."""
+    applied: 15 s of the quick demo's 3 s straight recording).
+
+    ``threads``: the cost's threads (the same result with any number; one where another process
+    keeps the cores busy)."""
     method = METHOD.format(len(frames))
     timing = None
     if offset_reach_s > 0 and all(f.t_ns is not None for f in frames):
         timing = _Timing(lidar_map.trajectory, np.array([f.t_ns for f in frames], dtype=np.int64))
-    problem = _Problem(frames, camera, lidar_map.points, timing)
+    problem = _Problem(frames, camera, lidar_map.points, timing, threads)
     every = np.arange(len(frames))
     initial = problem.visible(T_init)
     n_points = int((initial.sum(axis=0) >= MIN_VIEWS).sum())

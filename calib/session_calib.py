@@ -241,6 +241,7 @@ def session_extrinsic(
     lidar_map: LidarMap | None = None,
     offset_error_s: float = 0.0,
     search_straight: bool = True,
+    threads: int = 1,
 ) -> ExtrinsicResult:
     """The extrinsic step of :func:`calibrate_session`: from the chessboard ``board`` when given,
     else targetless from the rough ``T_init`` ``(4, 4)``: photo-consistency of the recording's
@@ -248,7 +249,8 @@ def session_extrinsic(
     pair at a time (:func:`extrinsic_pairs`) when the recording has no map. ``offset_error_s``
     (:func:`offset_error`) bounds how far ``time_offset_s`` may be off; a photo-consistency result
     whose frames it would move too far is ``poorly constrained`` (:func:`timing_reasons`).
-    ``search_straight``: as in :func:`~calib.photo_consistency.photo_consistency_extrinsic`."""
+    ``search_straight``, ``threads``: as in
+    :func:`~calib.photo_consistency.photo_consistency_extrinsic`."""
     if board is not None:
         return calibrate_board_session(data, camera, board, time_offset_s, T_init)
     lidar_map = lidar_map or session_lidar_map(data)
@@ -260,7 +262,7 @@ def session_extrinsic(
     drift = timing_drift(frame_t, lidar_map.trajectory, motion, time_offset_s, offset_error_s)
     matters = drift[0] > RETIME_ABOVE[0] or drift[1] > RETIME_ABOVE[1]
     reach = offset_error_s if matters and offset_error_s <= RETIME_REACH_S else 0.0
-    result = photo_consistency_extrinsic(frames, camera, lidar_map, T_init, search_straight, reach)
+    result = photo_consistency_extrinsic(frames, camera, lidar_map, T_init, search_straight, reach, threads)
     if (shift := result.extra.get("time_offset_shift")) is not None:
         shift["time_offset_s"] = time_offset_s + shift["shift_s"]
         if not shift["at_reach"]:  # else the offset may lie past the window: its doubt stays
@@ -279,6 +281,7 @@ def calibrate_session(
     board: BoardGeometry | None = None,
     progress: Callable[[str], None] | None = None,
     search_straight: bool = True,
+    threads: int = 1,
 ) -> tuple[Calibration, dict[str, Any]]:
     """Everything a recording supports: camera model, time offset and the extrinsic — from the
     chessboard ``board`` when given, else targetless — starting at a rough ``T_cam_lidar``:
@@ -287,8 +290,10 @@ def calibrate_session(
     not applied (the calibration keeps the rough one). ``progress`` is told each step as it
     starts. ``search_straight`` False skips the targetless search of a straight drive, whose
     result is never applied (what a reconstruction needs; the search's four axes are a diagnosis
-    for ``lts calibrate``). Returns the calibration and a report (``extrinsic_init`` says where the
-    rough extrinsic came from, ``init_holds`` what ``init`` gave when not the extrinsic)."""
+    for ``lts calibrate``). ``threads``: the targetless search's (the same result with any number;
+    one where another process keeps the cores busy). Returns the calibration and a report
+    (``extrinsic_init`` says where the rough extrinsic came from, ``init_holds`` what ``init``
+    gave when not the extrinsic)."""
     recording = as_recording(path)
     data = load_session(recording, topics)
     camera = data.camera or (init.camera if init is not None else None)
@@ -351,7 +356,7 @@ def calibrate_session(
         offset_doubt = 0.0 if trusted else offset_error(time_result, calibration.time_offset_s)
         result = session_extrinsic(
             data, camera, calibration.time_offset_s, motion, T_init, board,
-            offset_error_s=offset_doubt, search_straight=search_straight,
+            offset_error_s=offset_doubt, search_straight=search_straight, threads=threads,
         )  # fmt: skip
         report["extrinsic"] = result.to_json()
         # As with the time offset: a result that cannot vouch for itself does not replace the

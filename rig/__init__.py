@@ -14,6 +14,7 @@ _EXPORTS = {
     "load_calibration": "rig.calibration",
     "save_calibration": "rig.calibration",
     "CameraModel": "rig.camera",
+    "cpu_threads": "rig.cpu_threads",
     "deskewed_points": "rig.deskew",
     "InputError": "rig.errors",
     "OutOfRangeError": "rig.errors",

@@ -18,12 +18,12 @@ pitch rates lag the truth by 110–130 ms). The pose of a sweep left skewed hold
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from rig.cpu_threads import cpu_threads
 from rig.transforms import invert
 
 #: The odometry voxel as a fraction of the 95th-percentile range of the first sweep. The time of
@@ -96,13 +96,6 @@ def sweep_information(source: np.ndarray, points: np.ndarray, times: np.ndarray)
 #: sum the normal equations in a thread-dependent order, and registration amplifies the last-bit
 #: differences (the trajectory, the mesh and the training all changed from run to run).
 ODOMETRY_THREADS = 1
-
-
-def covariance_threads() -> int:
-    """Threads for the sweeps' covariances: ``OMP_NUM_THREADS`` where it is a positive number (as
-    OpenMP itself reads it), else every core."""
-    value = os.environ.get("OMP_NUM_THREADS", "")
-    return int(value) if value.isdigit() and int(value) > 0 else (os.cpu_count() or 1)
 
 
 def voxel_for_ranges(ranges: np.ndarray) -> float:
@@ -197,7 +190,7 @@ class SweepOdometry:
         # The downsampling on one thread (with more, the points come out in a thread-dependent
         # order); the covariances on all: each point's is its own, so they come out the same.
         sweep = self._gicp.voxelgrid_sampling(inside, self.voxel_size, num_threads=1)
-        threads = covariance_threads()
+        threads = cpu_threads()
         self._gicp.estimate_covariances(
             sweep, self._gicp.KdTree(sweep, num_threads=threads), COVARIANCE_NEIGHBOURS, num_threads=threads
         )

@@ -9,15 +9,20 @@
 // and its grey level sampled bilinearly in its frame (edges repeated); per frame, the grey levels
 // of the observations inside the image standardised (auto-exposure); per map point, the sums of
 // its standardised grey levels, of their squares and their count, added in observation order.
-// One thread: with two, a score took 1.4 ms instead of 2.3 on a quiet 2-core machine, but 27 ms
-// while another process kept a core busy (each thread waits for the other at the end), and
-// `lts reconstruct` maps in a process beside the calibration.
+// The frames' grey levels on `threads` threads, each a block of whole frames; the per-point sums on
+// one, in observation order, so that any number of threads gives the same sums to the bit. One
+// thread where another process is busy: with OpenMP's two a score took 1.4 ms instead of 2.3 on a
+// quiet 2-core machine but 27 ms while another process kept a core busy, and `lts reconstruct`
+// maps in a process beside the calibration (so it asks for one).
 #include <torch/csrc/utils/pybind.h>  // the module's Tensor arguments
 #include <torch/types.h>  // not torch/extension.h: all of libtorch's C++ API doubles the compile time
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <limits>
+#include <system_error>
+#include <thread>
 #include <vector>
 
 namespace {
@@ -47,7 +52,8 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
                                       double cy, int64_t height, const torch::Tensor& run_starts,
                                       const torch::Tensor& run_lengths,
                                       const torch::Tensor& run_rows, const torch::Tensor& point,
-                                      const torch::Tensor& sampled, int64_t n_points) {
+                                      const torch::Tensor& sampled, int64_t n_points,
+                                      int64_t threads) {
   check(images, "images", torch::kFloat32, 2);
   check(xyz, "xyz", torch::kFloat32, 2);
   check(moves, "moves", torch::kFloat32, 3);
@@ -86,59 +92,90 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
   // Each observation's grey level, then its standardised one; NaN where it falls outside its image.
   std::vector<double> value(m);
   double* const g = value.data();
-  for (int64_t r = 0; r < n_runs; ++r) {
-    const float* frame = img + first_row[r] * width;
-    const float* T = all_moves + 12 * r;
-    const float r00 = T[0], r01 = T[1], r02 = T[2], t0 = T[3], r10 = T[4], r11 = T[5], r12 = T[6];
-    const float t1 = T[7], r20 = T[8], r21 = T[9], r22 = T[10], t2 = T[11];
-    const int64_t begin = start[r], end = start[r] + length[r];
-    // In chunks: the projection of a chunk vectorises; its samples are gathered after it.
-    for (int64_t c0 = begin; c0 < end; c0 += kChunk) {
-      const int64_t nc = std::min(kChunk, end - c0);
-      float us[kChunk], vs[kChunk];
-      for (int64_t k = 0; k < nc; ++k) {
-        const float px = X[c0 + k], py = Y[c0 + k], pz = Z[c0 + k];
-        const float x = r00 * px + r01 * py + r02 * pz + t0;
-        const float y = r10 * px + r11 * py + r12 * pz + t1;
-        const float z = r20 * px + r21 * py + r22 * pz + t2;
-        const float safe = z > 0.05f ? z : 1.0f;
-        const float u = ffx * x / safe + fcx, v = ffy * y / safe + fcy;
-        // & not &&: no branches, so that the loop vectorises
-        const bool in = (z > 0.05f) & (u >= 0) & (u <= u_max) & (v >= 0) & (v <= v_max);
-        us[k] = in ? u : -1.0f;  // outside: a negative column
-        vs[k] = v;
-      }
-      for (int64_t k = 0; k < nc; ++k) {
-        const int64_t i = order[c0 + k];
-        TORCH_CHECK(i >= begin && i < end, "sampled: ", i, " outside run ", r);
-        const float u = us[k], v = vs[k];
-        if (u < 0) {
-          g[i] = std::numeric_limits<double>::quiet_NaN();
-          continue;
+  const auto grey_levels = [&](int64_t first_run, int64_t last_run) {
+    for (int64_t r = first_run; r < last_run; ++r) {
+      const float* frame = img + first_row[r] * width;
+      const float* T = all_moves + 12 * r;
+      const float r00 = T[0], r01 = T[1], r02 = T[2], t0 = T[3], r10 = T[4], r11 = T[5], r12 = T[6];
+      const float t1 = T[7], r20 = T[8], r21 = T[9], r22 = T[10], t2 = T[11];
+      const int64_t begin = start[r], end = start[r] + length[r];
+      // In chunks: the projection of a chunk vectorises; its samples are gathered after it.
+      for (int64_t c0 = begin; c0 < end; c0 += kChunk) {
+        const int64_t nc = std::min(kChunk, end - c0);
+        float us[kChunk], vs[kChunk];
+        for (int64_t k = 0; k < nc; ++k) {
+          const float px = X[c0 + k], py = Y[c0 + k], pz = Z[c0 + k];
+          const float x = r00 * px + r01 * py + r02 * pz + t0;
+          const float y = r10 * px + r11 * py + r12 * pz + t1;
+          const float z = r20 * px + r21 * py + r22 * pz + t2;
+          const float safe = z > 0.05f ? z : 1.0f;
+          const float u = ffx * x / safe + fcx, v = ffy * y / safe + fcy;
+          // & not &&: no branches, so that the loop vectorises
+          const bool in = (z > 0.05f) & (u >= 0) & (u <= u_max) & (v >= 0) & (v <= v_max);
+          us[k] = in ? u : -1.0f;  // outside: a negative column
+          vs[k] = v;
         }
-        const int64_t x0 = int64_t(u), y0 = int64_t(v);  // u, v >= 0: truncation is floor
-        const int64_t x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
-        const float wx = u - float(x0), wy = v - float(y0);
-        const float* row0 = frame + y0 * width;
-        const float* row1 = frame + y1 * width;
-        const float top = row0[x0] * (1 - wx) + row0[x1] * wx;
-        const float bottom = row1[x0] * (1 - wx) + row1[x1] * wx;
-        g[i] = double(top * (1 - wy) + bottom * wy);
+        for (int64_t k = 0; k < nc; ++k) {
+          const int64_t i = order[c0 + k];
+          TORCH_CHECK(i >= begin && i < end, "sampled: ", i, " outside run ", r);
+          const float u = us[k], v = vs[k];
+          if (u < 0) {
+            g[i] = std::numeric_limits<double>::quiet_NaN();
+            continue;
+          }
+          const int64_t x0 = int64_t(u), y0 = int64_t(v);  // u, v >= 0: truncation is floor
+          const int64_t x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
+          const float wx = u - float(x0), wy = v - float(y0);
+          const float* row0 = frame + y0 * width;
+          const float* row1 = frame + y1 * width;
+          const float top = row0[x0] * (1 - wx) + row0[x1] * wx;
+          const float bottom = row1[x0] * (1 - wx) + row1[x1] * wx;
+          g[i] = double(top * (1 - wy) + bottom * wy);
+        }
       }
+      double sum = 0.0, sum_sq = 0.0;
+      int64_t n_in = 0;
+      for (int64_t i = begin; i < end; ++i) {
+        if (std::isnan(g[i])) continue;
+        sum += g[i];
+        sum_sq += g[i] * g[i];
+        ++n_in;
+      }
+      const double n = double(std::max<int64_t>(n_in, 1));
+      const double mean = sum / n;
+      const double scale = 1.0 / std::sqrt(std::max(sum_sq / n - mean * mean, 1e-6));
+      for (int64_t i = begin; i < end; ++i) g[i] = (g[i] - mean) * scale;  // NaN stays NaN
     }
-    double sum = 0.0, sum_sq = 0.0;
-    int64_t n_in = 0;
-    for (int64_t i = begin; i < end; ++i) {
-      if (std::isnan(g[i])) continue;
-      sum += g[i];
-      sum_sq += g[i] * g[i];
-      ++n_in;
-    }
-    const double n = double(std::max<int64_t>(n_in, 1));
-    const double mean = sum / n;
-    const double scale = 1.0 / std::sqrt(std::max(sum_sq / n - mean * mean, 1e-6));
-    for (int64_t i = begin; i < end; ++i) g[i] = (g[i] - mean) * scale;  // NaN stays NaN
+  };
+  // Blocks of whole runs with about as many observations each; an error in a thread is raised here.
+  const int64_t n_threads = std::max<int64_t>(1, std::min(threads, n_runs));
+  std::vector<int64_t> bounds{0};
+  for (int64_t r = 0, done = 0; r < n_runs; ++r) {
+    done += length[r];
+    if (done * n_threads >= m * int64_t(bounds.size()) && int64_t(bounds.size()) < n_threads)
+      bounds.push_back(r + 1);
   }
+  while (int64_t(bounds.size()) <= n_threads) bounds.push_back(n_runs);
+  std::vector<std::exception_ptr> errors(n_threads);
+  const auto block = [&](int64_t b) {
+    try {
+      grey_levels(bounds[b], bounds[b + 1]);
+    } catch (...) {
+      errors[b] = std::current_exception();
+    }
+  };
+  std::vector<std::thread> workers;
+  for (int64_t b = 1; b < n_threads; ++b) {
+    try {
+      workers.emplace_back(block, b);
+    } catch (const std::system_error&) {  // no thread to be had: this one does the block
+      block(b);
+    }
+  }
+  block(0);
+  for (auto& worker : workers) worker.join();
+  for (const auto& error : errors)
+    if (error) std::rethrow_exception(error);
 
   // Zeroed here, not by torch::zeros: that fills in parallel above 32 768 values, and a thread
   // of another process in the way makes those threads wait for each other (10x the whole call).

@@ -75,7 +75,7 @@ def test_the_compiled_sums_are_the_numpy_sums(blur: float, monkeypatch: pytest.M
 
 
 @pytest.mark.skipif(photo_kernel.photo_extension() is None, reason="no C++ toolchain to build the kernel")
-def test_the_sampling_order_changes_the_speed_not_the_sums() -> None:
+def test_the_sampling_order_and_the_threads_change_the_speed_not_the_sums() -> None:
     problem = _room_problem()
     problem.blur(1.0)
     frames = np.arange(6)
@@ -97,14 +97,17 @@ def test_the_sampling_order_changes_the_speed_not_the_sums() -> None:
         start + np.random.default_rng(7).permutation(length)
         for start, length in zip(obs.run_starts, obs.run_lengths, strict=True)
     ])  # fmt: skip
-    for order in (identity, shuffled):
-        again = problem.kernel_point_sums(extension, moves, sampled_in(order))
-        for mine, theirs in zip(again, sums, strict=True):
-            np.testing.assert_array_equal(mine, theirs)
     crossing = identity.copy()
     crossing[[0, -1]] = crossing[[-1, 0]]  # two observations swapped between the first and last run
-    with pytest.raises(RuntimeError, match=r"sampled: .* outside run"):
-        problem.kernel_point_sums(extension, moves, sampled_in(crossing))
+    for threads in (1, 2, 3, 10):  # more threads than frames too
+        problem.threads = threads
+        for order in (identity, shuffled):
+            again = problem.kernel_point_sums(extension, moves, sampled_in(order))
+            for mine, theirs in zip(again, sums, strict=True):
+                np.testing.assert_array_equal(mine, theirs)
+        # Found in whichever thread samples the last run, and raised here.
+        with pytest.raises(RuntimeError, match=r"sampled: .* outside run"):
+            problem.kernel_point_sums(extension, moves, sampled_in(crossing))
 
 
 def test_the_numpy_sums_stand_in_without_a_compiler(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
