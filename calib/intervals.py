@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from scipy.stats import t as student_t
+# Student's t quantile from scipy.special: scipy.stats's t gives the same and takes 0.5 s to import.
+from scipy.special import stdtrit
 
 #: A normal distribution's 95 % interval, in standard deviations (a spread known exactly).
 NORMAL_95 = 1.96
@@ -12,4 +13,4 @@ def jackknife_interval_95(groups: int) -> float:
     """Half-width of a 95 % interval in jackknife standard deviations from ``groups`` groups: the
     variance has ``groups - 1`` degrees of freedom, so Student's t quantile (2.78 for 5 groups,
     2.36 for 8, 2.09 for 20), not the normal 1.96."""
-    return float(student_t.ppf(0.975, groups - 1))
+    return float(stdtrit(groups - 1, 0.975))
