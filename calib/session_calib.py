@@ -349,7 +349,7 @@ def calibrate_session(
         tell(
             "extrinsic from the board"
             if board is not None
-            else f"extrinsic: LiDAR map, then photo-consistency over {CONSISTENCY_FRAMES} frames (<1 min)"
+            else f"extrinsic: LiDAR map, then photo-consistency over {CONSISTENCY_FRAMES} frames (~1 min)"
         )
         # An offset given with --init is taken as given; one estimated here is as good as its interval.
         trusted = (init is not None or guess is not None) and time_result.verdict != "ok"
