@@ -42,9 +42,10 @@ void check(const torch::Tensor& t, const char* name, torch::ScalarType dtype, in
 // int64 each); moves (R, 3, 4) float32: each run's [R | t] from its points' coordinates into its
 // camera; point (M,) int64: each observation's point among n_points; sampled (M,) int64: the
 // observations in the order they are sampled, each run's own permuted (by where they fall in
-// the image, so that the samples of a run walk its image instead of jumping about it: 1.8x
+// the image, so that the samples of a run walk its image instead of jumping about it: about 1.7x
 // faster on 960-wide images); xyz (3, M) float32: the map point of observation sampled[k] in its
-// frame's LiDAR coordinates in column k (coordinates in rows: the projection vectorises). The sums are added in observation order whatever the sampling order.
+// frame's LiDAR coordinates in column k (coordinates in rows: the projection vectorises). The
+// sums are added in observation order whatever the sampling order.
 // Returns the per-point sums (n_points,) float64 of the standardised grey levels and of their
 // squares, and the count (n_points,) int64 of the observations inside their image.
 std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::Tensor& xyz,
