@@ -351,12 +351,12 @@ class _Problem:
     def kernel_point_sums(
         self, extension: ModuleType, moves: np.ndarray, obs: _Observations
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`point_sums` in one pass of the compiled ``extension`` (:mod:`calib.photo_kernel`),
-        on one thread: for the 214 000 observations of a 20-frame room 4.4 -> 2.3 ms, and 16 ->
-        2.4 ms while another process keeps a core busy (NumPy's matrix product waits on OpenBLAS's
-        threads); sampled in ``obs.sampled``'s order (by where the points fall in their image) and
-        the projection vectorised, the 320 000 of a 20-frame KITTI-size drive at 960 x 290
-        8.7 -> 5.3 ms, with the same sums to the bit (on any number of :attr:`threads` too). Its
+        """:meth:`point_sums` in one pass of the compiled ``extension`` (:mod:`calib.photo_kernel`)
+        on :attr:`threads` threads. On one, for the 214 000 observations of a 20-frame room 4.4 ->
+        2.3 ms, and 16 -> 2.4 ms while another process keeps a core busy (NumPy's matrix product
+        waits on OpenBLAS's threads); sampled in ``obs.sampled``'s order (by where the points fall
+        in their image) and the projection vectorised, the 320 000 of a 20-frame KITTI-size drive
+        at 960 x 290 8.7 -> 5.3 ms (4.1-4.4 ms on two threads), with the same sums to the bit. Its
         bilinear samples are exact where OpenCV's are at 1/32 px, and its sums are added in
         another order: the sums agree to ~1e-3, the cost to ~1e-6 (relative)."""
         import torch
