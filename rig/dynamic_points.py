@@ -26,6 +26,7 @@ import numpy as np
 from scipy.ndimage import minimum_filter
 from scipy.spatial import cKDTree
 
+from rig.cpu_threads import cpu_threads
 from rig.transforms import invert, transform_points
 
 
@@ -159,8 +160,11 @@ def grown(points_sensor: np.ndarray, seeds: np.ndarray, config: DynamicConfig) -
     def neighbours(of: np.ndarray, at: np.ndarray) -> np.ndarray:
         """How many of the points ``of`` lie within ``grow_m`` of each of the points ``at``."""
         tree = cKDTree(points_sensor[of])
-        # Every core: exact counts whatever the threads (a KITTI-size drive's 4.6 -> 3.8 s on 2).
-        return tree.query_ball_point(points_sensor[at], config.grow_m, return_length=True, workers=-1)
+        # Exact counts on any number of threads (a KITTI-size drive's 4.6 -> 3.8 s on 2); one in
+        # the mapper that runs beside a calibration.
+        return tree.query_ball_point(
+            points_sensor[at], config.grow_m, return_length=True, workers=cpu_threads()
+        )
 
     # Only points with a seed within reach can join (the room's sweeps: a few stray seeds, and
     # counting all their thousands of neighbours took most of the time).
