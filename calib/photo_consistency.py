@@ -289,7 +289,7 @@ class _Problem:
         xyz = np.hstack([self.frame_points[f][:, p] for f, p in zip(frames, per_frame, strict=True)])
         sampled = _by_image_position(xyz, [len(p) for p in per_frame], T, self.K, self.width, self.height)
         return _Observations(
-            xyz, rows, compact, int(observed.sum()), self.height, frames, self.poses, self.shift_s, sampled
+            xyz, rows, compact, int(observed.sum()), self.height, frames, self.poses, sampled, self.shift_s
         )
 
     def poses_at(self, shift_s: float) -> np.ndarray:
@@ -401,15 +401,15 @@ class _Observations:
         image_height: int,
         frames: np.ndarray,
         poses: np.ndarray,
+        sampled: np.ndarray,
         shift_s: float = 0.0,
-        sampled: np.ndarray | None = None,
     ) -> None:
         self.xyz, self.point, self.n_points = xyz, point, n_points
         self.poses, self.shift_s = poses, shift_s
         #: ``(M,)`` the order in which the compiled sums sample the observations (each frame's
         #: own permuted: :func:`_by_image_position`), and ``(3, M)`` their points in it.
-        self.sampled = np.arange(len(point)) if sampled is None else sampled
-        self.xyz_sampled = np.ascontiguousarray(xyz[:, self.sampled])
+        self.sampled = sampled
+        self.xyz_sampled = np.ascontiguousarray(xyz[:, sampled])
         #: ``(M,)`` the first row of each observation's frame in the stacked images.
         self.row_offset = frames[row].astype(np.float32) * image_height
         #: The frames that see something, each a run of the flat arrays: first index and length
@@ -460,11 +460,10 @@ def _by_image_position(
     by row, then by one of ``65535 // height`` column bands (a 16-bit key, so that the sort is a
     radix sort). The searches move the extrinsic little between choices of observations, so the
     compiled sums sampled in this order walk each image instead of jumping about it."""
-    camera = T[:3, :3] @ xyz + T[:3, 3, None]
-    z = np.maximum(camera[2], 0.05)
+    u, v, _, _ = _project((T[:3, :3] @ xyz + T[:3, 3, None]).T, K, width, height)
     bands = 65535 // height
-    row = np.clip(K[1, 1] * camera[1] / z + K[1, 2], 0, height - 1).astype(np.int64)
-    column = np.clip(K[0, 0] * camera[0] / z + K[0, 2], 0, width - 1)
+    row = np.clip(v, 0, height - 1).astype(np.int64)
+    column = np.clip(u, 0, width - 1)
     key = (row * bands + (column * bands / width).astype(np.int64)).astype(np.uint16)
     order = np.empty(xyz.shape[1], dtype=np.int64)
     start = 0
