@@ -1,6 +1,7 @@
-"""The compiled form of the photo-consistency cost's per-point sums (``csrc/``), built once;
-:meth:`calib.photo_consistency._Problem.point_sums`' NumPy form is its specification and stands
-in where no compiler is at hand."""
+"""The compiled form of the photo-consistency cost's per-point sums and of the frames' visibility
+(``csrc/``), built once; :meth:`calib.photo_consistency._Problem.point_sums`' and
+:func:`calib.photo_consistency._shown_points`' NumPy forms are their specification and stand in
+where no compiler is at hand."""
 
 from __future__ import annotations
 
@@ -10,7 +11,10 @@ from types import ModuleType
 
 from rig.native_build import NativeBuildError, load_extension
 
-SOURCE = Path(__file__).parent / "csrc" / "photo_consistency_cpu.cpp"
+SOURCES = [
+    Path(__file__).parent / "csrc" / name for name in ("photo_consistency_cpu.cpp", "visibility_cpu.cpp")
+]
+HEADERS = [Path(__file__).parent / "csrc" / "parallel_blocks.h"]
 
 
 @cache
@@ -18,7 +22,7 @@ def photo_extension() -> ModuleType | None:
     """The compiled extension (built on first use), or None where it cannot be built."""
     try:
         return load_extension(
-            "lts_calib_cpu", [SOURCE], [], "the calibration's photo-consistency kernel",
+            "lts_calib_cpu", SOURCES, HEADERS, "the calibration's photo-consistency kernels",
             "The calibration's NumPy form runs instead.", build_s=15,
         )  # fmt: skip
     except NativeBuildError:

@@ -19,11 +19,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <exception>
 #include <limits>
-#include <system_error>
-#include <thread>
 #include <vector>
+
+#include "parallel_blocks.h"
 
 namespace {
 
@@ -157,26 +156,7 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
       bounds.push_back(r + 1);
   }
   while (int64_t(bounds.size()) <= n_threads) bounds.push_back(n_runs);
-  std::vector<std::exception_ptr> errors(n_threads);
-  const auto block = [&](int64_t b) {
-    try {
-      grey_levels(bounds[b], bounds[b + 1]);
-    } catch (...) {
-      errors[b] = std::current_exception();
-    }
-  };
-  std::vector<std::thread> workers;
-  for (int64_t b = 1; b < n_threads; ++b) {
-    try {
-      workers.emplace_back(block, b);
-    } catch (const std::system_error&) {  // no thread to be had: this one does the block
-      block(b);
-    }
-  }
-  block(0);
-  for (auto& worker : workers) worker.join();
-  for (const auto& error : errors)
-    if (error) std::rethrow_exception(error);
+  run_blocks(n_threads, [&](int64_t b) { grey_levels(bounds[b], bounds[b + 1]); });
 
   // Zeroed here, not by torch::zeros: that fills in parallel above 32 768 values, and a thread
   // of another process in the way makes those threads wait for each other (10x the whole call).
@@ -200,6 +180,12 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
   return {sums, sums_sq, count};
 }
 
+// visibility_cpu.cpp
+torch::Tensor shown_points(const std::vector<torch::Tensor>& cameras, int64_t n_map, double fx,
+                           double fy, double cx, double cy, int64_t width, int64_t height,
+                           int64_t window, double relative, double metres, int64_t threads);
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("point_sums", &point_sums, "photo-consistency sums per map point (CPU)");
+  m.def("shown_points", &shown_points, "the map points each frame sees (CPU)");
 }

@@ -1,5 +1,5 @@
-"""The compiled photo-consistency sums against their NumPy specification, and the stand-in where
-no compiler is at hand."""
+"""The compiled photo-consistency sums and visibility against their NumPy specifications, and the
+stand-ins where no compiler is at hand."""
 
 from __future__ import annotations
 
@@ -19,9 +19,10 @@ from rig.transforms import make_transform
 CAMERA = CameraModel("pinhole", 160, 120, np.array([[100.0, 0, 80], [0, 100.0, 60], [0, 0, 1]]), np.zeros(0))
 
 
-def _room_problem() -> _Problem:
+def _room_problem(occluders: int = 0) -> _Problem:
     """Six frames looking at a textured room corner (two walls and a floor, some points behind the
-    cameras or off their images), each image a different gain and offset of one smooth texture."""
+    cameras or off their images), each image a different gain and offset of one smooth texture;
+    each frame with ``occluders`` points of its own between the cameras and the walls."""
     rng = np.random.default_rng(3)
     a, b = rng.uniform(-3, 3, (2, 3000))
     world = np.vstack([
@@ -37,7 +38,10 @@ def _room_problem() -> _Problem:
         gain, offset = 0.7 + 0.05 * k, 10 * k
         image = np.clip(gain * np.roll(texture, 3 * k, axis=1) + offset, 0, 255).astype(np.uint8)
         turn = Rotation.from_euler("y", 4 * k - 10, degrees=True).as_matrix()
-        frames.append(ConsistencyFrame(image, make_transform(turn, (0.2 * k - 0.5, 0.0, 0.1 * k))))
+        in_the_way = rng.uniform((-1, -1, 2), (1, 1, 4), (occluders, 3))
+        frames.append(
+            ConsistencyFrame(image, make_transform(turn, (0.2 * k - 0.5, 0.0, 0.1 * k)), in_the_way)
+        )
     return _Problem(frames, CAMERA, world)
 
 
@@ -110,6 +114,46 @@ def test_the_sampling_order_and_the_threads_change_the_speed_not_the_sums() -> N
             problem.kernel_point_sums(extension, moves, sampled_in(crossing))
 
 
+@pytest.mark.skipif(photo_kernel.photo_extension() is None, reason="no C++ toolchain to build the kernel")
+def test_the_compiled_visibility_is_the_numpy_visibility(monkeypatch: pytest.MonkeyPatch) -> None:
+    problem = _room_problem(occluders=400)
+    for step in range(4):  # extrinsics that move points off the images and behind the cameras
+        turn = Rotation.from_rotvec(np.deg2rad([2.0, -4.0, 3.0]) * step).as_matrix()
+        T = make_transform(turn, np.array([0.1, -0.2, 0.3]) * step)
+        with monkeypatch.context() as numpy_only:
+            numpy_only.setattr(photo_consistency, "photo_extension", lambda: None)
+            expected = problem.visible(T)
+            without_occluders = _room_problem().visible(T)
+        assert expected.any()
+        assert (without_occluders & ~expected).any()  # the occluders hide map points
+        for threads in (1, 2, 3, 10):  # more threads than frames too
+            problem.threads = threads
+            np.testing.assert_array_equal(problem.visible(T), expected)
+
+
+@pytest.mark.skipif(photo_kernel.photo_extension() is None, reason="no C++ toolchain to build the kernel")
+def test_the_compiled_visibility_rounds_and_crops_as_numpy() -> None:
+    """Points on a half pixel (rounded to even), on the image's edges (the window cut short), on
+    the 5 cm near limit and just behind a nearer point's tolerance."""
+    problem = _room_problem()
+    n = problem.n_map
+    rng = np.random.default_rng(5)
+    cameras = []
+    for _ in range(3):
+        z = rng.choice(np.float32([0.05, 1, 2, 4, 8, 100]), n).astype(np.float32)
+        u = rng.choice(np.arange(-1, 161, 0.5, dtype=np.float32), n)  # the image spans 0-159 x 0-119
+        v = rng.choice(np.arange(-1, 121, 0.5, dtype=np.float32), n)
+        fx, fy, cx, cy = 100.0, 100.0, 80.0, 60.0
+        camera = np.stack([(u - cx) * z / fx, (v - cy) * z / fy, z]).astype(np.float32)
+        camera[2, ::7] *= np.float32(1.03)  # a step behind the same pixel's nearer points
+        cameras.append(np.ascontiguousarray(np.hstack([camera, camera[:, :40] * 0.5])))  # and occluders
+    mask = problem.kernel_visible(photo_kernel.photo_extension(), cameras)
+    for camera, shown in zip(cameras, mask, strict=True):
+        expected = photo_consistency._shown_points(camera, problem.K, problem.width, problem.height)
+        np.testing.assert_array_equal(np.flatnonzero(shown), expected[expected < n])
+        assert 0 < shown.sum() < n
+
+
 def test_the_numpy_sums_stand_in_without_a_compiler(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.setenv("LTS_CACHE_DIR", str(tmp_path))  # nothing built there yet
     monkeypatch.setenv("CXX", "no-such-compiler")
@@ -125,8 +169,9 @@ def test_the_numpy_sums_stand_in_without_a_compiler(monkeypatch: pytest.MonkeyPa
     assert 0 < between < 2 and problem.cost(np.eye(4), obs) > 0
 
 
-def test_a_wheel_carries_the_kernel_source() -> None:
+def test_a_wheel_carries_the_kernel_sources() -> None:
     pyproject = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())
     patterns = pyproject["tool"]["setuptools"]["package-data"]["calib"]
-    package = photo_kernel.SOURCE.parents[1]
-    assert photo_kernel.SOURCE in {path for pattern in patterns for path in package.glob(pattern)}
+    package = photo_kernel.SOURCES[0].parents[1]
+    carried = {path for pattern in patterns for path in package.glob(pattern)}
+    assert set(photo_kernel.SOURCES + photo_kernel.HEADERS) <= carried
