@@ -279,7 +279,7 @@ def session_command(
     model, time offset, and the extrinsic (target-based with --board, else targetless: the LiDAR's
     map must look alike in 20 frames of the recording) from a rough one (--init, a bag's
     /tf_static, else found from the motion). Takes about a minute for the targetless extrinsic
-    on 2 cores (a 10 s room: 25 s; a KITTI-size drive: 42-55 s)."""
+    on 2 cores (a 10 s room: 25 s; a KITTI-size drive: 39-55 s)."""
     from calib.board_session import board_geometry
     from calib.session_calib import calibrate_session, report_lines
     from rig.calibration import load_calibration, save_calibration

@@ -291,13 +291,17 @@ class _Problem:
         seen = np.flatnonzero(visible.sum(axis=0) >= MIN_VIEWS)
         scored = np.zeros(self.n_map, dtype=bool)
         scored[seen[:: max(1, min(stride, len(seen) // MIN_POINTS))]] = True
-        visible[:, ~scored] = False
-        rows, points = np.nonzero(visible)  # row-major: grouped by frame
+        visible &= scored
+        # Row-major, so grouped by frame (np.nonzero's pairs, three times faster).
+        rows, points = np.divmod(np.flatnonzero(visible), self.n_map)
         # The observed points' indices among themselves, in map order (np.unique's, without a sort).
         observed = visible.any(axis=0)
         compact = (np.cumsum(observed) - 1)[points]
         per_frame = np.split(points, np.searchsorted(rows, np.arange(1, len(frames))))
-        xyz = np.hstack([self.frame_points[f][:, p] for f, p in zip(frames, per_frame, strict=True)])
+        # np.take along the axis: 5x faster than fancy indexing of the columns.
+        xyz = np.hstack(
+            [np.take(self.frame_points[f], p, axis=1) for f, p in zip(frames, per_frame, strict=True)]
+        )
         sampled = _by_image_position(xyz, [len(p) for p in per_frame], T, self.K, self.width, self.height)
         return _Observations(
             xyz, rows, compact, int(observed.sum()), self.height, frames, self.poses, sampled, self.shift_s
@@ -420,7 +424,7 @@ class _Observations:
         #: ``(M,)`` the order in which the compiled sums sample the observations (each frame's
         #: own permuted: :func:`_by_image_position`), and ``(3, M)`` their points in it.
         self.sampled = sampled
-        self.xyz_sampled = np.ascontiguousarray(xyz[:, sampled])
+        self.xyz_sampled = np.take(xyz, sampled, axis=1)
         #: ``(M,)`` the first row of each observation's frame in the stacked images.
         self.row_offset = frames[row].astype(np.float32) * image_height
         #: The frames that see something, each a run of the flat arrays: first index and length
@@ -471,7 +475,9 @@ def _by_image_position(
     by row, then by one of ``65535 // height`` column bands (a 16-bit key, so that the sort is a
     radix sort). The searches move the extrinsic little between choices of observations, so the
     compiled sums sampled in this order walk each image instead of jumping about it."""
-    u, v, _, _ = _project((T[:3, :3] @ xyz + T[:3, 3, None]).T, K, width, height)
+    # In float32, as the points are: an order is all this gives, and float64 took 5x as long.
+    R, t = T[:3, :3].astype(np.float32), T[:3, 3, None].astype(np.float32)
+    u, v, _, _ = _project((R @ xyz + t).T, K, width, height)
     bands = 65535 // height
     row = np.clip(v, 0, height - 1).astype(np.int64)
     column = np.clip(u, 0, width - 1)
