@@ -30,6 +30,7 @@ import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from types import ModuleType
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -44,6 +45,9 @@ from rig.camera import CameraModel
 from rig.errors import InputError
 from rig.trajectory import Trajectory
 from rig.transforms import invert, transform_points
+
+if TYPE_CHECKING:
+    import torch
 
 #: Gaussian blurs (pixels at the working width, 960) of the coarse-to-fine stages: the first
 #: ones let a guess 10° off find the way (10° is 170 px at 960 px for a 90° field of view).
@@ -264,11 +268,9 @@ class _Problem:
         mask as :func:`_shown_points` gives. A 20-frame KITTI-size drive's call (120 000 map
         points, 960 x 290, the matrix products included) takes 72 ms in NumPy, 54 ms here on one
         thread and 41 ms on two."""
-        import torch
-
         (fx, _, cx), (_, fy, cy) = self.K[:2]
         seen = extension.shown_points(
-            [torch.from_numpy(np.ascontiguousarray(c, dtype=np.float32)) for c in cameras], self.n_map,
+            [_tensor(c, np.float32) for c in cameras], self.n_map,
             float(fx), float(fy), float(cx), float(cy), self.width, self.height, OCCLUSION_PX,
             1 + DEPTH_TOLERANCE[0], DEPTH_TOLERANCE[1], self.threads,
         )  # fmt: skip
@@ -374,17 +376,12 @@ class _Problem:
         at 960 x 290 8.7 -> 5.3 ms (4.1-4.4 ms on two threads), with the same sums to the bit. Its
         bilinear samples are exact where OpenCV's are at 1/32 px, and its sums are added in
         another order: the sums agree to ~1e-3, the cost to ~1e-6 (relative)."""
-        import torch
-
-        def tensor(a: np.ndarray, dtype: type) -> torch.Tensor:
-            return torch.from_numpy(np.ascontiguousarray(a, dtype=dtype))
-
         (fx, _, cx), (_, fy, cy) = self.K[:2]
-        runs = (tensor(r, np.int64) for r in (obs.run_starts, obs.run_lengths, obs.run_rows))
+        runs = (_tensor(r, np.int64) for r in (obs.run_starts, obs.run_lengths, obs.run_rows))
         sums = extension.point_sums(
-            tensor(self.images, np.float32), tensor(obs.xyz_sampled, np.float32), tensor(moves, np.float32),
-            float(fx), float(fy), float(cx), float(cy), self.height, *runs, tensor(obs.point, np.int64),
-            tensor(obs.sampled, np.int64), obs.n_points, self.threads,
+            _tensor(self.images, np.float32), _tensor(obs.xyz_sampled, np.float32),
+            _tensor(moves, np.float32), float(fx), float(fy), float(cx), float(cy), self.height, *runs,
+            _tensor(obs.point, np.int64), _tensor(obs.sampled, np.int64), obs.n_points, self.threads,
         )  # fmt: skip
         return tuple(s.numpy() for s in sums)
 
@@ -502,6 +499,14 @@ def _project(
     v = float(K[1, 1]) * p[:, 1] / safe + float(K[1, 2])
     inside = (z > 0.05) & (u >= 0) & (u <= width - 1) & (v >= 0) & (v <= height - 1)
     return u, v, z, inside
+
+
+def _tensor(a: np.ndarray, dtype: type) -> torch.Tensor:
+    """``a`` as a contiguous CPU tensor of ``dtype`` for the compiled kernels (no copy where it
+    is one already)."""
+    import torch  # here, not at the top: the NumPy forms run without it
+
+    return torch.from_numpy(np.ascontiguousarray(a, dtype=dtype))
 
 
 def _shown_points(camera: np.ndarray, K: np.ndarray, width: int, height: int) -> np.ndarray:

@@ -11,10 +11,9 @@ from types import ModuleType
 
 from rig.native_build import NativeBuildError, load_extension
 
-SOURCES = [
-    Path(__file__).parent / "csrc" / name for name in ("photo_consistency_cpu.cpp", "visibility_cpu.cpp")
-]
-HEADERS = [Path(__file__).parent / "csrc" / "parallel_blocks.h"]
+CSRC = Path(__file__).parent / "csrc"
+SOURCES = [CSRC / "photo_consistency_cpu.cpp", CSRC / "visibility_cpu.cpp"]
+HEADERS = [CSRC / "parallel_blocks.h", CSRC / "pinhole.h"]
 
 
 @cache

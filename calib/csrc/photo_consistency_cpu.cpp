@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "parallel_blocks.h"
+#include "pinhole.h"
 
 namespace {
 
@@ -85,9 +86,7 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
     TORCH_CHECK(first_row[r] >= 0 && first_row[r] + height <= images.size(0), "run ", r,
                 ": its frame's rows lie outside the images");
   }
-  // NumPy's float32 arithmetic of _project: Python floats become float32 operands.
-  const float ffx = float(fx), ffy = float(fy), fcx = float(cx), fcy = float(cy);
-  const float u_max = float(width - 1), v_max = float(height - 1);
+  const Pinhole camera(fx, fy, cx, cy, width, height);
 
   // Each observation's grey level, then its standardised one; NaN where it falls outside its image.
   std::vector<double> value(m);
@@ -108,10 +107,8 @@ std::vector<torch::Tensor> point_sums(const torch::Tensor& images, const torch::
           const float x = r00 * px + r01 * py + r02 * pz + t0;
           const float y = r10 * px + r11 * py + r12 * pz + t1;
           const float z = r20 * px + r21 * py + r22 * pz + t2;
-          const float safe = z > 0.05f ? z : 1.0f;
-          const float u = ffx * x / safe + fcx, v = ffy * y / safe + fcy;
-          // & not &&: no branches, so that the loop vectorises
-          const bool in = (z > 0.05f) & (u >= 0) & (u <= u_max) & (v >= 0) & (v <= v_max);
+          float u, v;
+          const bool in = camera.project(x, y, z, u, v);
           us[k] = in ? u : -1.0f;  // outside: a negative column
           vs[k] = v;
         }

@@ -5,7 +5,7 @@
 // keeps the nearest of scattered points per pixel (NumPy's minimum.at is an unbuffered scatter),
 // and `lts calibrate` asks this of every frame about a hundred times. The arithmetic is NumPy's
 // float32 arithmetic, without fused multiply-adds (the build's -ffp-contract=off), so that the
-// same points come out. Frames on `threads` threads, each a block of whole frames.
+// same points come out (pinhole.h). Frames on `threads` threads, each a block of whole frames.
 #include <torch/types.h>
 
 #include <algorithm>
@@ -14,13 +14,15 @@
 #include <vector>
 
 #include "parallel_blocks.h"
+#include "pinhole.h"
 
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 struct View {
-  float fx, fy, cx, cy, u_max, v_max, relative, metres;
+  Pinhole camera;
+  float relative, metres;
   int64_t width, height, window;
 };
 
@@ -43,9 +45,8 @@ void shown_in_frame(const float* X, const float* Y, const float* Z, int64_t n, i
   float* nearest = buffers.nearest.data();
   for (int64_t i = 0; i < n; ++i) {
     const float z = Z[i];
-    const float safe = z > 0.05f ? z : 1.0f;
-    const float u = view.fx * X[i] / safe + view.cx, v = view.fy * Y[i] / safe + view.cy;
-    if (!((z > 0.05f) & (u >= 0) & (u <= view.u_max) & (v >= 0) & (v <= view.v_max))) {
+    float u, v;
+    if (!view.camera.project(X[i], Y[i], z, u, v)) {
       pixel[i] = -1;
       continue;
     }
@@ -106,10 +107,8 @@ torch::Tensor shown_points(const std::vector<torch::Tensor>& cameras, int64_t n_
                     c.dim() == 2 && c.size(0) == 3 && c.size(1) >= n_map,
                 "cameras[", f, "]: expected a contiguous (3, N >= ", n_map, ") float32 CPU tensor");
   }
-  // NumPy's float32 arithmetic of _project: Python floats become float32 operands.
-  const View view{float(fx),         float(fy),         float(cx),        float(cy),
-                  float(width - 1),  float(height - 1), float(relative),  float(metres),
-                  width,             height,            window};
+  const View view{Pinhole(fx, fy, cx, cy, width, height), float(relative), float(metres), width,
+                  height, window};
   auto seen = torch::empty({n_frames, n_map}, torch::kBool);
   bool* out = seen.data_ptr<bool>();
 
