@@ -52,6 +52,17 @@ def test_command_lists_and_usage_lines_read_as_the_help_texts_write_them() -> No
     assert "<int>" in usage.stdout  # options that take a value keep their type
 
 
+def test_the_quick_demos_help_gives_the_iterations_it_trains() -> None:
+    """The help is written out (the command line must not import the pipeline to print it): it
+    must follow the constant the demo trains with."""
+    from lts.demo import QUICK_ITERATIONS
+
+    wide = {**os.environ, "COLUMNS": "400"}
+    command = [BIN / "lts", "demo", "--help"]
+    shown = subprocess.run(command, capture_output=True, text=True, timeout=60, env=wide)
+    assert f"{QUICK_ITERATIONS} iterations" in shown.stdout, shown.stdout
+
+
 def test_importing_packages_loads_no_hardware_or_heavy_library() -> None:
     """Nor the libraries that made every command line start 1 s slower (lts --help 2.5 -> 1.0 s)."""
     libraries = (
