@@ -1,5 +1,6 @@
 """``lts bench``: the benchmarks — rasteriser speed, training run time against error, the ablation
-table, the warm-start noise curve and the stress suite."""
+table, the warm-start noise curve, the calibration's accuracy, the images' own ceiling and the
+stress suite."""
 
 from __future__ import annotations
 
@@ -267,6 +268,31 @@ def _print_calib(result: dict) -> None:
                 "" if row["median_seconds"] is None else f"{row['median_seconds']:.1f}",
             )
     console.print(table)
+
+
+@bench_app.command("images")
+def bench_images_command(
+    sim: str = typer.Option("office", "--sim", help="Virtual-rig preset (office: the image-fidelity one)."),
+    seed: int = typer.Option(0, "--seed", min=0, help="The simulator's seed."),
+    quick: bool = typer.Option(False, "--quick", help="The simulator's 3 s, 160x120 run."),
+    interval: float = typer.Option(
+        0.5,
+        "--keyframe-interval",
+        min=0.01,
+        help="One keyframe per this many seconds (lts prepare's default).",
+    ),
+    test_every: int = typer.Option(8, "--test-every", min=2, help="Every n-th keyframe is a test view."),
+    json_out: bool = JSON_OPTION,
+) -> None:
+    """How closely any render of a static scene can match a virtual-rig preset's test images (its
+    texture's level of detail, lts prepare's undistortion): the ceiling no training passes."""
+    from lts.bench.images import bench_images
+    from rig.sim.config import SimConfig
+
+    config = SimConfig(preset=sim, seed=seed)
+    result = bench_images(config.quick() if quick else config, interval, test_every, _log)
+    if json_out:
+        emit_json(result)
 
 
 @bench_app.command("raster")
