@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from rig.errors import InputError
-from rig.sim.camera_sim import MIN_COS_INCIDENCE, CameraSimulator, to_bgr8
+from rig.sim.camera_sim import CameraSimulator, pixel_footprint, to_bgr8
 from rig.sim.config import SimConfig
 from rig.sim.raycast import Hits
 from rig.sim.simulate import SimRun, prepare
@@ -50,22 +50,13 @@ def _quantised(rgb: np.ndarray) -> np.ndarray:
     return np.round(np.clip(rgb, 0.0, 1.0) * 255.0) / 255.0
 
 
-def _footprint(
-    normals: np.ndarray, directions: np.ndarray, distance: np.ndarray, pixel_angle: float
-) -> np.ndarray:
-    """The footprint (m) ``(N,)`` of a pixel on surfaces with unit ``normals`` ``(N, 3)`` seen along
-    unit ``directions`` ``(N, 3)`` from ``distance`` ``(N,)`` m away, as the simulator computes it."""
-    cos = np.abs(np.einsum("ij,ij->i", normals, directions))
-    return distance * pixel_angle / np.maximum(cos, MIN_COS_INCIDENCE)
-
-
 def _test_view_hits(run: SimRun, camera: CameraSimulator, t_s: float) -> tuple[Hits, np.ndarray]:
     """What the pixels of the view at ``t_s`` hit, and their footprints ``(N,)``."""
     T = run.motion.poses(np.array([t_s]))[0]
     directions = camera.directions @ T[:3, :3].T
     hits = run.world.raycaster.cast(T[:3, 3], directions, t_s)
     hits, directions = hits.subset(hits.hit), directions[hits.hit]
-    return hits, _footprint(hits.normal, directions, hits.distance, camera.pixel_angle)
+    return hits, pixel_footprint(hits.normal, directions, hits.distance, camera.pixel_angle)
 
 
 def static_colour_errors(run: SimRun, test_t: np.ndarray, train_t: np.ndarray) -> tuple[float, int]:
@@ -91,7 +82,7 @@ def static_colour_errors(run: SimRun, test_t: np.ndarray, train_t: np.ndarray) -
             visible = first.hit & (np.abs(first.distance - distance) < 0.01 + 0.002 * distance)
             rows = ahead[visible]
             seen = hits.subset(rows)
-            footprint_there = _footprint(
+            footprint_there = pixel_footprint(
                 seen.normal, directions[visible], distance[visible], camera.pixel_angle
             )
             total[rows] += appearance.colour(seen, footprint_there)

@@ -16,6 +16,16 @@ from rig.sim.world import World, sky_colour
 MIN_COS_INCIDENCE = 0.25
 
 
+def pixel_footprint(
+    normals: np.ndarray, directions: np.ndarray, distance: np.ndarray, pixel_angle: float
+) -> np.ndarray:
+    """Size (m) ``(N,)`` of a pixel of angular size ``pixel_angle`` on surfaces with unit ``normals``
+    ``(N, 3)``, seen along unit ``directions`` ``(N, 3)`` from ``distance`` ``(N,)`` away: what picks
+    the texture's mip level."""
+    cos = np.abs(np.einsum("ij,ij->i", normals, directions))
+    return distance * pixel_angle / np.maximum(cos, MIN_COS_INCIDENCE)
+
+
 class CameraSimulator:
     """Renders images and depth of a :class:`World` for one camera model.
 
@@ -55,8 +65,7 @@ class CameraSimulator:
             if world.sky:
                 rgb[index[~ok]] = sky_colour(directions[~ok])
             hits, directions, index = hits.subset(ok), directions[ok], index[ok]
-        cos = np.abs(np.einsum("ij,ij->i", hits.normal, directions))
-        footprint = hits.distance * self.pixel_angle / np.maximum(cos, MIN_COS_INCIDENCE)
+        footprint = pixel_footprint(hits.normal, directions, hits.distance, self.pixel_angle)
         depth = np.full(n_pix, np.nan)
         rgb[index] = world.appearance.colour(hits, footprint)
         depth[index] = hits.distance * (directions @ R[:, 2])
