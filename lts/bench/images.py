@@ -119,7 +119,7 @@ def undistortion_errors(run: SimRun, test_t: np.ndarray) -> dict[float, tuple[fl
 
 
 def psnr(squared: float, count: int) -> float:
-    """PSNR (dB, peak 1) of a sum of squared errors over ``count`` values (inf for none)."""
+    """PSNR (dB, peak 1) of a sum of squared errors over ``count`` values (inf when it is zero)."""
     return math.inf if squared == 0 else -10.0 * math.log10(squared / count)
 
 
