@@ -28,8 +28,9 @@ import numpy as np
 from rig.errors import InputError
 from rig.sim.camera_sim import CameraSimulator, pixel_footprint, to_bgr8
 from rig.sim.config import SimConfig
-from rig.sim.raycast import Hits
 from rig.sim.simulate import SimRun, prepare
+from slam_bridge.keyframe_selection import make_keyframes
+from slam_bridge.scene import Keyframe
 
 #: Gaussian blurs (pixels) tried on the undistorted camera's render; 0: none.
 BLUR_SIGMAS_PX = (0.0, 0.3, 0.5, 0.7, 0.9)
@@ -37,12 +38,18 @@ BLUR_SIGMAS_PX = (0.0, 0.3, 0.5, 0.7, 0.9)
 BORDER_PX = 5
 
 
-def keyframe_split(duration_s: float, interval_s: float, test_every: int) -> tuple[np.ndarray, np.ndarray]:
-    """Training and test keyframe times ``(K,)`` (s) of a run of ``duration_s``: one per
-    ``interval_s`` from half an interval in, every ``test_every``-th held out."""
-    times = np.arange(interval_s / 2, duration_s - 1e-9, interval_s)
-    test = np.arange(len(times)) % test_every == test_every - 1
-    return times[~test], times[test]
+def keyframe_split(run: SimRun, interval_s: float, test_every: int) -> tuple[list[Keyframe], list[Keyframe]]:
+    """Training and test keyframes of ``run`` (stamps in ns of its motion's seconds, true poses):
+    one per ``interval_s`` from half an interval in, held out as ``lts prepare`` holds them out
+    (:func:`~slam_bridge.keyframe_selection.make_keyframes`)."""
+    times = np.arange(interval_s / 2, run.motion.duration_s - 1e-9, interval_s)
+    keyframes = make_keyframes(np.round(times * 1e9).astype(np.int64), run.motion.poses(times), test_every)
+    return [k for k in keyframes if k.split == "train"], [k for k in keyframes if k.split == "test"]
+
+
+def _seconds(keyframe: Keyframe) -> float:
+    """The keyframe's time on the run's motion (s)."""
+    return keyframe.t_ns * 1e-9
 
 
 def _quantised(rgb: np.ndarray) -> np.ndarray:
@@ -50,16 +57,7 @@ def _quantised(rgb: np.ndarray) -> np.ndarray:
     return np.round(np.clip(rgb, 0.0, 1.0) * 255.0) / 255.0
 
 
-def _test_view_hits(run: SimRun, camera: CameraSimulator, t_s: float) -> tuple[Hits, np.ndarray]:
-    """What the pixels of the view at ``t_s`` hit, and their footprints ``(N,)``."""
-    T = run.motion.poses(np.array([t_s]))[0]
-    directions = camera.directions @ T[:3, :3].T
-    hits = run.world.raycaster.cast(T[:3, 3], directions, t_s)
-    hits, directions = hits.subset(hits.hit), directions[hits.hit]
-    return hits, pixel_footprint(hits.normal, directions, hits.distance, camera.pixel_angle)
-
-
-def static_colour_errors(run: SimRun, test_t: np.ndarray, train_t: np.ndarray) -> tuple[float, int]:
+def static_colour_errors(run: SimRun, test: list[Keyframe], train: list[Keyframe]) -> tuple[float, int]:
     """Sum of squared errors and the number of values: each test pixel's colour against the mean of
     the colours the training views that see its surface point give it (pixels no training view
     sees are left out)."""
@@ -67,18 +65,20 @@ def static_colour_errors(run: SimRun, test_t: np.ndarray, train_t: np.ndarray) -
     camera = CameraSimulator(camera_model)
     appearance = run.world.appearance
     squared, count = 0.0, 0
-    for t_s in test_t:
-        hits, footprint = _test_view_hits(run, camera, t_s)
+    for view in test:
+        hits, directions = camera.cast(run.world, view.T_world_cam, _seconds(view))
+        hits, directions = hits.subset(hits.hit), directions[hits.hit]
+        footprint = pixel_footprint(hits.normal, directions, hits.distance, camera.pixel_angle)
         total, seen_by = np.zeros((len(hits.points), 3)), np.zeros(len(hits.points))
-        for t_train in train_t:
-            T = run.motion.poses(np.array([t_train]))[0]
+        for other in train:
+            T = other.T_world_cam
             in_camera = (hits.points - T[:3, 3]) @ T[:3, :3]
             ahead = np.flatnonzero(in_camera[:, 2] > 0.05)
             ahead = ahead[camera_model.in_image(camera_model.project(in_camera[ahead]))]
             offsets = hits.points[ahead] - T[:3, 3]
             distance = np.linalg.norm(offsets, axis=1)
             directions = offsets / distance[:, None]
-            first = run.world.raycaster.cast(T[:3, 3], directions, t_train)
+            first = run.world.raycaster.cast(T[:3, 3], directions, _seconds(other))
             visible = first.hit & (np.abs(first.distance - distance) < 0.01 + 0.002 * distance)
             rows = ahead[visible]
             seen = hits.subset(rows)
@@ -95,7 +95,7 @@ def static_colour_errors(run: SimRun, test_t: np.ndarray, train_t: np.ndarray) -
     return squared, count
 
 
-def undistortion_errors(run: SimRun, test_t: np.ndarray) -> dict[float, tuple[float, int]]:
+def undistortion_errors(run: SimRun, test: list[Keyframe]) -> dict[float, tuple[float, int]]:
     """Per blur of :data:`BLUR_SIGMAS_PX`: sum of squared errors and the number of values of the
     recorded test images undistorted as ``lts prepare`` does against the simulator's render in the
     undistorted camera, so blurred."""
@@ -104,12 +104,12 @@ def undistortion_errors(run: SimRun, test_t: np.ndarray) -> dict[float, tuple[fl
     recorded_camera, ideal_camera = CameraSimulator(camera_model), CameraSimulator(target)
     no_noise = np.random.default_rng(0)  # to_bgr8 draws nothing without noise or jitter
     sums = {sigma: (0.0, 0) for sigma in BLUR_SIGMAS_PX}
-    for t_s in test_t:
-        T = run.motion.poses(np.array([t_s]))[0]
+    inner = (slice(BORDER_PX, -BORDER_PX), slice(BORDER_PX, -BORDER_PX))
+    for view in test:
+        T, t_s = view.T_world_cam, _seconds(view)
         recorded, _ = recorded_camera.render(run.world, T, t_s)
         undistorted = camera_model.undistort_image(to_bgr8(recorded, no_noise), target)[..., ::-1] / 255.0
         ideal, _ = ideal_camera.render(run.world, T, t_s)
-        inner = (slice(BORDER_PX, -BORDER_PX), slice(BORDER_PX, -BORDER_PX))
         for sigma in BLUR_SIGMAS_PX:
             blurred = cv2.GaussianBlur(ideal, (0, 0), sigma) if sigma > 0 else ideal
             error = (undistorted - _quantised(blurred))[inner]
@@ -129,17 +129,17 @@ def bench_images(
     """Both ceilings on ``config``'s test views, and the two together (their squared errors added):
     the JSON table of ``lts bench images``."""
     run = prepare(config)
-    train_t, test_t = keyframe_split(run.motion.duration_s, interval_s, test_every)
-    if not len(test_t) or not len(train_t):
+    train, test = keyframe_split(run, interval_s, test_every)
+    if not test or not train:
         raise InputError(
             f"{run.motion.duration_s:.1f} s at one keyframe per {interval_s} s, one in {test_every} held "
-            f"out, gives {len(train_t)} training and {len(test_t)} test keyframes; need both",
+            f"out, gives {len(train)} training and {len(test)} test keyframes; need both",
             field="--keyframe-interval",
         )
-    log(f"{config.preset}: {len(train_t)} training and {len(test_t)} test keyframes")
-    static = static_colour_errors(run, test_t, train_t)
+    log(f"{config.preset}: {len(train)} training and {len(test)} test keyframes")
+    static = static_colour_errors(run, test, train)
     log(f"  a static colour per surface point: {psnr(*static):.2f} dB")
-    undistortion = {sigma: psnr(*sums) for sigma, sums in undistortion_errors(run, test_t).items()}
+    undistortion = {sigma: psnr(*sums) for sigma, sums in undistortion_errors(run, test).items()}
     best = max(undistortion, key=lambda sigma: undistortion[sigma])
     log(f"  undistorted test images against the render: {undistortion[best]:.2f} dB (blur {best} px)")
     # Mean squared errors add for independent sources: 10^(-a/10) + 10^(-b/10).
@@ -150,8 +150,8 @@ def bench_images(
         "preset": config.preset,
         "seed": config.seed,
         "image_size": [camera.width, camera.height],
-        "train_views": len(train_t),
-        "test_views": len(test_t),
+        "train_views": len(train),
+        "test_views": len(test),
         "static_colour_psnr": psnr(*static),
         "undistortion_psnr_by_blur_px": {str(sigma): value for sigma, value in undistortion.items()},
         "undistortion_psnr": undistortion[best],

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from rig.camera import CameraModel
+from rig.sim.raycast import Hits
 from rig.sim.world import World, sky_colour
 
 #: Footprint stretch is capped at this grazing angle's cosine (limits blur at grazing incidence).
@@ -44,6 +45,13 @@ class CameraSimulator:
         self.directions = rays[self.valid] / np.linalg.norm(rays[self.valid], axis=1, keepdims=True)
         self.pixel_angle = 1.0 / camera.fx
 
+    def cast(self, world: World, T_world_cam: np.ndarray, t_s: float = 0.0) -> tuple[Hits, np.ndarray]:
+        """What the rays of the valid pixels (row-major) of the view from pose ``T_world_cam``
+        ``(4, 4)`` at time ``t_s`` hit, misses included, and the rays' unit world directions
+        ``(P, 3)``."""
+        directions = self.directions @ T_world_cam[:3, :3].T
+        return world.raycaster.cast(T_world_cam[:3, 3], directions, t_s), directions
+
     def render(
         self, world: World, T_world_cam: np.ndarray, t_s: float = 0.0
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -54,9 +62,7 @@ class CameraSimulator:
             ``(H, W, 3)`` float32 RGB in [0, 1] (the sky, or black, where nothing was hit) and
             ``(H, W)`` float64 depth (camera-frame z, m; NaN where nothing was hit).
         """
-        R, t = T_world_cam[:3, :3], T_world_cam[:3, 3]
-        directions = self.directions @ R.T
-        hits = world.raycaster.cast(t, directions, t_s)
+        hits, directions = self.cast(world, T_world_cam, t_s)
         index = np.flatnonzero(self.valid)
         n_pix = self.camera.width * self.camera.height
         rgb = np.zeros((n_pix, 3), dtype=np.float32)
@@ -68,7 +74,7 @@ class CameraSimulator:
         footprint = pixel_footprint(hits.normal, directions, hits.distance, self.pixel_angle)
         depth = np.full(n_pix, np.nan)
         rgb[index] = world.appearance.colour(hits, footprint)
-        depth[index] = hits.distance * (directions @ R[:, 2])
+        depth[index] = hits.distance * (directions @ T_world_cam[:3, 2])
         shape = (self.camera.height, self.camera.width)
         return rgb.reshape(*shape, 3), depth.reshape(shape)
 

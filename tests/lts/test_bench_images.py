@@ -11,14 +11,17 @@ import numpy as np
 
 from lts.bench.images import BLUR_SIGMAS_PX, bench_images, keyframe_split
 from rig.sim.config import SimConfig
+from rig.sim.simulate import prepare
 
 BIN = Path(sys.executable).parent
 
 
 def test_the_split_holds_out_every_nth_keyframe() -> None:
-    train, test = keyframe_split(4.0, 0.5, 4)
-    np.testing.assert_allclose(test, [1.75, 3.75])
-    assert len(train) == 6 and not set(train) & set(test)
+    run = prepare(SimConfig(preset="room").quick(duration_s=4.0))
+    train, test = keyframe_split(run, 0.5, 4)
+    np.testing.assert_array_equal([k.t_ns for k in test], [1_750_000_000, 3_750_000_000])
+    assert len(train) == 6 and not {k.t_ns for k in train} & {k.t_ns for k in test}
+    np.testing.assert_allclose(test[0].T_world_cam, run.motion.poses(np.array([1.75]))[0])
 
 
 def test_the_quick_room_has_a_ceiling_below_perfect_and_each_part_above_it() -> None:
