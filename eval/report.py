@@ -32,10 +32,12 @@ SECTIONS = {
     "configuration": "Configuration",
 }
 
-# (key, label, kind); kinds: db, ratio, pct, m (shown in cm), s, int, text
+# (key, label, kind); kinds: db, ratio, pct, m (shown in cm), s, px, int, text
 _GROUPS = {
     "Photometry (held-out views)": [
         ("psnr", "PSNR", "db"),
+        ("psnr_sharp", "PSNR without the camera's blur", "db"),
+        ("camera_blur_px", "camera's blur (Gaussian σ, fitted on the training views)", "px"),
         ("psnr_color_aligned", "PSNR, each view's colours fitted (exposure)", "db"),
         ("psnr_hard_edges", "PSNR with hard triangle edges (as a mesh rasteriser draws them)", "db"),
         ("ssim", "SSIM", "ratio"),
@@ -163,6 +165,8 @@ def _format(value, kind: str) -> str:
         return f"{100 * value:.2f} cm"
     if kind == "s":
         return f"{value:.1f} s"
+    if kind == "px":
+        return f"{value:.2f} px"
     if kind == "int":
         return f"{int(value):,}".replace(",", " ")
     if isinstance(value, float):

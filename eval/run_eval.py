@@ -56,6 +56,7 @@ from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.background_mask import above_lidar, scored_background_mask
 from splat.blocks.partition import PARTITION_FILE, Partition, read_partition
+from splat.camera_blur import blurred
 from splat.exposure import through_color_map
 from splat.model import TriangleModel, load_model
 
@@ -218,6 +219,7 @@ def _photometric(
     moving: list[np.ndarray] | None = None,
     color_maps: dict[str, np.ndarray] | None = None,
     sky: list[np.ndarray] | None = None,
+    blur_px: float = 0.0,
 ) -> list[ViewImages]:
     """PSNR, SSIM, LPIPS and depth errors of the test views into ``metrics``; also PSNR over the
     pixels above the LiDAR's reach, of the render with hard triangle edges (:data:`HARD_EDGE_SIGMA`)
@@ -225,9 +227,12 @@ def _photometric(
     object), over the static pixels; with ``sky`` (one ``(H, W)`` mask per test view of the pixels
     the ground truth leaves empty, :mod:`eval.sky_pixels`), over the static sky pixels and the
     share of them that triangles cover. A test view with a colour matrix ``(3, 3)`` in
-    ``color_maps`` (by name: its exposure, :mod:`splat.exposure`) is scored through it."""
+    ``color_maps`` (by name: its exposure, :mod:`splat.exposure`) is scored through it, and every
+    render through the camera's blur of ``blur_px`` pixels (:mod:`splat.camera_blur`); the PSNR
+    without that blur is ``psnr_sharp``."""
     views, psnrs, ssims, lpips_values, depth_errors = [], [], [], [], []
     above_psnrs, static_psnrs, moving_fractions, aligned_psnrs, hard_psnrs = [], [], [], [], []
+    sharp_psnrs = []
     sky_psnrs, sky_pixels, sky_covered = [], 0, 0
     hard_edged = replace(model, sigma=HARD_EDGE_SIGMA)
     for i, keyframe in enumerate(tests):
@@ -243,10 +248,11 @@ def _photometric(
         matrix = (color_maps or {}).get(keyframe.name)
         color_map = None if matrix is None else torch.as_tensor(matrix)
         out = model.render_at(scene.camera, keyframe.T_world_cam, shows)
-        render = _as_rgb(through_color_map(out.rgb, color_map))
+        render = _as_rgb(through_color_map(blurred(out.rgb, blur_px), color_map))
         target = scene.image(keyframe).astype(np.float32) / 255.0
+        sharp_psnrs.append(psnr(_as_rgb(through_color_map(out.rgb, color_map)), target))
         hard = hard_edged.render_at(scene.camera, keyframe.T_world_cam, shows).rgb
-        hard_psnrs.append(psnr(_as_rgb(through_color_map(hard, color_map)), target))
+        hard_psnrs.append(psnr(_as_rgb(through_color_map(blurred(hard, blur_px), color_map)), target))
         alpha = out.alpha.detach().cpu().numpy()
         aligned_psnrs.append(psnr(color_aligned(render, target), target))
         if above is not None and bool(above.any()):
@@ -272,6 +278,8 @@ def _photometric(
         depth = out.expected_depth().detach().cpu().numpy()[valid]
         depth_errors.append(np.abs(depth - lidar[valid]))
     metrics["psnr"] = float(np.mean(psnrs))
+    metrics["psnr_sharp"] = float(np.mean(sharp_psnrs))
+    metrics["camera_blur_px"] = blur_px
     metrics["ssim"] = float(np.mean(ssims))
     metrics["psnr_color_aligned"] = float(np.mean(aligned_psnrs))
     metrics["psnr_hard_edges"] = float(np.mean(hard_psnrs))
@@ -479,6 +487,18 @@ def _read_summary(run_dir: Path) -> dict:
     return summary if isinstance(summary, dict) else {}
 
 
+def _camera_blur_px(summary: dict, path: Path) -> float:
+    """The width (px) of the camera's blur the run fitted (``camera_blur.width_px`` of its summary;
+    0 for a run from before it was fitted)."""
+    blur = summary.get("camera_blur") or {}
+    width = blur.get("width_px", 0.0) if isinstance(blur, dict) else blur
+    if isinstance(width, bool) or not isinstance(width, int | float) or not 0 <= width < 100:
+        raise InputError(
+            f"expected a width in pixels (0 to 100), got {width!r}", path=path, field="camera_blur.width_px"
+        )
+    return float(width)
+
+
 def evaluate_run(
     run_dir: str | Path,
     gt: str | Path | None = None,
@@ -537,7 +557,10 @@ def evaluate_run(
     elif not color_maps:
         reasons["test_color_maps"] = "the run learnt no colour maps (lts train --exposure)"
     sky = None if truth is None else sky_masks(truth.mesh, scene.camera, [k.T_world_cam for k in tests])
-    views = _photometric(model, views_from, tests, lpips_network, metrics, reasons, moving, color_maps, sky)
+    blur_px = _camera_blur_px(summary, layout.summary_path(run_dir))
+    views = _photometric(
+        model, views_from, tests, lpips_network, metrics, reasons, moving, color_maps, sky, blur_px
+    )
 
     metrics.update(dict.fromkeys(GT_FIELDS))
     if truth is not None:

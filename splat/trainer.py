@@ -24,6 +24,7 @@ from rig.errors import InputError
 from rig.transforms import invert
 from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
+from splat.camera_blur import FIT_VIEWS, fit_blur
 from splat.coarse_views import coarse_iterations, half_camera, half_view
 from splat.config import TrainConfig, load_config
 from splat.exposure import (
@@ -79,6 +80,7 @@ class TrainResult:
     exposure: dict = field(default_factory=dict)
     blocks: list[dict] = field(default_factory=list)
     poses: dict = field(default_factory=dict)
+    camera_blur: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -490,6 +492,25 @@ class Trainer:
         layout.exposure_path(self.run_dir).write_text(json.dumps(record, indent=1))
         return {**self.exposures.summary(), "test_views": rule}
 
+    def _fit_camera_blur(self) -> dict:
+        """Fit the camera's blur on training views (:data:`~splat.camera_blur.FIT_VIEWS` of them, evenly
+        spread; :func:`~splat.camera_blur.fit_blur`) and score the test views through it; returns its
+        summary for ``summary.json``."""
+        n = len(self.train_views)
+        chosen = np.unique(np.linspace(0, n - 1, min(n, FIT_VIEWS)).round().astype(int))
+        views = [self.train_views[i] for i in chosen]
+        with torch.no_grad():
+            renders = [
+                self._render_training_view(i, self.train_views[i], self.scene.camera)[0].rgb for i in chosen
+            ]
+        width, sharp, fitted = fit_blur(
+            (r, v.image, v.moving_mask) for r, v in zip(renders, views, strict=True)
+        )
+        for view in self.test_views:
+            view.blur_px = width
+        self.log(f"the camera's blur: {width:.2f} px (training views {sharp:.2f} -> {fitted:.2f} dB)")
+        return {"width_px": width, "train_psnr_sharp": round(sharp, 3), "train_psnr": round(fitted, 3)}
+
     def _evaluate(self, it: int, losses: dict[str, float]) -> None:
         self._set_held_out_maps()
         test = evaluate_views(self.model, self.test_views, self.scene.camera) if self.test_views else {}
@@ -565,9 +586,11 @@ class Trainer:
 
     def _finish(self) -> TrainResult:
         save_model(self.model, layout.model_path(self.run_dir))
-        # The loop evaluates its last iteration (the end, or where it stopped early).
-        test = self.state.last_test
         exposure = self._write_color_maps()
+        blur = self._fit_camera_blur()
+        test = evaluate_views(self.model, self.test_views, self.scene.camera) if self.test_views else {}
+        if "test_psnr" in test:
+            blur["test_psnr_sharp"] = self.state.last_test.get("test_psnr")  # the loop's last evaluation
         write_renders(self.model, self.test_views, self.scene.camera, layout.renders_dir(self.run_dir))
         keyframes, poses, lidar = self.train_keyframes, {}, self.lidar
         if self.poses is not None:
@@ -580,7 +603,7 @@ class Trainer:
         result = TrainResult(
             str(self.run_dir), c.method, c.preset, c.device, s.iteration, round(s.elapsed_s, 3),
             self.model.n_triangles, s.stopped_early, s.rejected_total, test, s.skips, s.densification, export,
-            exposure, poses=poses,
+            exposure, poses=poses, camera_blur=blur,
         )  # fmt: skip
         layout.summary_path(self.run_dir).write_text(json.dumps(asdict(result), indent=1))
         return result

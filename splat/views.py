@@ -11,6 +11,7 @@ from torch import Tensor
 
 from rig.transforms import distance_and_angle, invert
 from slam_bridge.scene import Keyframe, Scene
+from splat.camera_blur import blurred
 from splat.exposure import through_color_map
 
 
@@ -32,6 +33,8 @@ class View:
             trainer has kept them (None: D-SSIM computes them each time).
         color_map: ``(3, 3)`` colour matrix a held-out view's render is scored through (its
             exposure, :func:`splat.exposure.held_out_maps`), or None (the render as it is).
+        blur_px: width (px) of the camera's blur a held-out view's render is scored through
+            (:mod:`splat.camera_blur`); 0: none.
     """
 
     name: str
@@ -43,6 +46,7 @@ class View:
     moving_mask: Tensor | None = None
     image_moments: Tensor | None = None
     color_map: Tensor | None = None
+    blur_px: float = 0.0
 
     @cached_property
     def normal_known(self) -> Tensor | None:
@@ -53,9 +57,9 @@ class View:
         return torch.isfinite(self.normal).all(dim=-1) & (self.normal.abs().sum(dim=-1) > 0)
 
     def scored_rgb(self, rgb: Tensor) -> Tensor:
-        """A render ``(H, W, 3)`` of this view as it is scored: through :attr:`color_map`, clipped to
-        [0, 1]."""
-        return through_color_map(rgb, self.color_map)
+        """A render ``(H, W, 3)`` of this view as it is scored: through the camera's blur
+        (:attr:`blur_px`) and :attr:`color_map`, clipped to [0, 1]."""
+        return through_color_map(blurred(rgb, self.blur_px), self.color_map)
 
 
 def load_views(

@@ -143,8 +143,11 @@ def _merge(
     model = merge_models(models, keep, [float(b.n_train) for b in blocks])
     save_model(model, layout.model_path(run_dir))
     maps, rule = _merged_color_maps(scene, partition, runs, run_dir)
+    summaries = [results[b.index]["summary"] for b in blocks]
+    blur = _merged_camera_blur(summaries, blocks)
     test_views = load_held_out_views(scene, scene.split("test"), config)
     for view in test_views:
+        view.blur_px = blur["width_px"]
         if view.name in maps:
             view.color_map = torch.as_tensor(maps[view.name], dtype=torch.float32, device=config.device)
     test = evaluate_views(model, test_views, scene.camera) if test_views else {}
@@ -152,7 +155,6 @@ def _merge(
     keyframes = scene.split("train")
     lidar = lidar_points(scene, keyframes)
     export = export_run(model, scene, keyframes, run_dir, scene_floor(scene, keyframes, lidar), lidar)
-    summaries = [results[b.index]["summary"] for b in blocks]
     iterations = sum(s["iterations"] for s in summaries)
     line = {"iteration": iterations, "elapsed_s": round(wall_s, 3), "n_triangles": model.n_triangles, **test}
     layout.metrics_path(run_dir).write_text(json.dumps(line) + "\n")
@@ -163,10 +165,19 @@ def _merge(
         str(run_dir), config.method, config.preset, config.device, iterations, round(wall_s, 3),
         model.n_triangles, any(s["stopped_early"] for s in summaries),
         sum(s["rejected_steps"] for s in summaries), test, skips, [], export, _exposure_summary(maps, rule),
-        per_block,
+        per_block, camera_blur=blur,
     )  # fmt: skip
     layout.summary_path(run_dir).write_text(json.dumps(asdict(result), indent=1))
     return result
+
+
+def _merged_camera_blur(summaries: list[dict], blocks: list[Block]) -> dict:
+    """The camera's blur of the merged run: the blocks' fitted widths (one camera) weighted by their
+    training keyframes (0 for a block from before the blur was fitted)."""
+    widths = [float((s.get("camera_blur") or {}).get("width_px", 0.0)) for s in summaries]
+    weights = [float(b.n_train) for b in blocks]
+    width = round(sum(w * n for w, n in zip(widths, weights, strict=True)) / max(sum(weights), 1.0), 2)
+    return {"width_px": width, "blocks_px": widths}
 
 
 def _block_report(block: Block, result: dict, kept: int) -> dict:

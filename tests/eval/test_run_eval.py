@@ -156,6 +156,24 @@ def test_model_renders_are_what_the_trainer_reports(tiny_run, with_gt) -> None:
     assert with_gt.metrics["psnr"] == pytest.approx(summary["test"]["test_psnr"], abs=0.05)
 
 
+def test_renders_are_scored_through_the_camera_blur_the_run_fitted(tiny_run, with_gt, tmp_path) -> None:
+    summary = json.loads((tiny_run[0] / "summary.json").read_text())
+    width = summary["camera_blur"]["width_px"]
+    assert with_gt.metrics["camera_blur_px"] == width
+    assert with_gt.metrics["psnr_sharp"] == pytest.approx(summary["camera_blur"]["test_psnr_sharp"], abs=0.05)
+    run_dir = tmp_path / "run"
+    shutil.copytree(tiny_run[0], run_dir, ignore=shutil.ignore_patterns("checkpoints"))
+    summary["camera_blur"]["width_px"] = width + 1.0
+    (run_dir / "summary.json").write_text(json.dumps(summary))
+    metrics = evaluate_run(run_dir, physics=False).metrics
+    assert metrics["camera_blur_px"] == width + 1.0 and metrics["psnr_sharp"] == with_gt.metrics["psnr_sharp"]
+    assert metrics["psnr"] != with_gt.metrics["psnr"]
+    summary["camera_blur"]["width_px"] = "wide"
+    (run_dir / "summary.json").write_text(json.dumps(summary))
+    with pytest.raises(InputError, match=r"camera_blur\.width_px.*expected a width in pixels"):
+        evaluate_run(run_dir, physics=False)
+
+
 def other_scene(tiny_run, root: Path, change) -> Path:
     """A copy of the tiny run's scene folder whose ``scene.json`` ``change(data)`` edited."""
     scene_dir = load_scene(run_dir_scene(tiny_run[0])).root

@@ -227,6 +227,9 @@ def test_blocks_on_ray_merge_into_a_run_that_lts_eval_reads(scene_dir, tmp_path)
     assert all(b["peak_rss_mb"] > 0 and b["resumed_at"] is None for b in summary["blocks"])
     partition = json.loads((run / "partition.json").read_text())
     assert len(partition["blocks"]) == len(summary["blocks"])
+    blur = summary["camera_blur"]  # the blocks' widths, weighted by their training keyframes
+    widths, weights = blur["blocks_px"], [b["train_keyframes"] for b in summary["blocks"]]
+    assert len(widths) == len(weights) and min(widths) <= blur["width_px"] <= max(widths)
     for name in ("model.pt", "mesh.ply", "collision.obj", "metrics.jsonl", "run.json"):
         assert (run / name).is_file(), name
     evaluated = _run(["eval", run], timeout=600)

@@ -369,6 +369,9 @@ def test_training_improves_the_view_and_writes_the_run_folder(scene_dir, tmp_pat
     assert result.test["test_depth_l1_m"] < 0.05
     assert load_model(run / "model.pt").n_triangles == result.n_triangles
     assert result.densification and result.rejected_steps == 0
+    blur = result.camera_blur  # fitted on the training views; the test views are scored through it
+    assert 0 <= blur["width_px"] <= 1.5 and blur["train_psnr"] >= blur["train_psnr_sharp"]
+    assert blur["test_psnr_sharp"] == lines[-1]["test_psnr"]
 
 
 def test_resume_after_a_kill_reaches_identical_parameters(scene_dir, tmp_path, monkeypatch):

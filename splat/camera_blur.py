@@ -1,0 +1,80 @@
+"""The camera's blur: a Gaussian point-spread function the renders pass through before they are
+compared with the captured images.
+
+The images the training sees are softer than a point-sampled render: ``lts prepare`` resamples
+every distorted image bilinearly into the pinhole camera (a shift of f px weighs two neighbours
+by f and 1 - f, a blur of variance f (1 - f)), and a real camera adds its optics and demosaicing.
+Opaque triangles with sharp edges cannot make that blur themselves. One width per camera is
+fitted on the training views once the triangles are trained (:func:`fit_blur`), so it is a
+property of the camera, measured like the colour maps of :mod:`splat.exposure`, and the test
+views are rendered through it (:func:`blurred`). A render without blur is the width 0.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+import torch
+from kornia.filters import get_gaussian_kernel1d
+from scipy.optimize import minimize_scalar
+from torch import Tensor
+
+#: The widest blur (Gaussian sigma, px) :func:`fit_blur` considers.
+MAX_WIDTH_PX = 1.5
+#: How many training views (evenly spread) :func:`fit_blur` fits on: one number needs few pixels.
+FIT_VIEWS = 12
+
+
+def blurred(rgb: Tensor, sigma_px: float) -> Tensor:
+    """``rgb`` ``(H, W, 3)`` through a Gaussian of ``sigma_px`` pixels (3 sigma wide, borders
+    replicated); the same tensor for a width of 0. Differentiable in ``rgb``."""
+    if sigma_px <= 0:
+        return rgb
+    radius = max(1, math.ceil(3 * sigma_px))
+    taps = get_gaussian_kernel1d(2 * radius + 1, sigma_px, device=rgb.device, dtype=rgb.dtype).view(-1)
+    out = rgb
+    for dim in (0, 1):  # separable; sums of shifted slices run several times faster than conv2d here
+        n = out.shape[dim]
+        rows = torch.arange(-radius, n + radius, device=rgb.device).clamp(0, n - 1)
+        padded = out.index_select(dim, rows)
+        out = sum(taps[i] * padded.narrow(dim, i, n) for i in range(2 * radius + 1))
+    return out
+
+
+@torch.no_grad()
+def fit_blur(views: Iterable[tuple[Tensor, Tensor, Tensor | None]]) -> tuple[float, float, float]:
+    """The width (px, 0 to :data:`MAX_WIDTH_PX`, to 0.01 px) whose blur brings the renders nearest
+    their images in squared error.
+
+    Args:
+        views: per view its render ``(H, W, 3)`` (as scored: through its colour map), its image
+            ``(H, W, 3)`` and the mask ``(H, W)`` of the pixels to leave out (moving objects), or None.
+
+    Returns:
+        The width (px), and the PSNR (dB) of the renders without blur and with it (NaN without a
+        pixel to fit on).
+    """
+    pairs = []
+    for render, image, left_out in views:
+        keep = torch.ones(image.shape[:2], dtype=torch.bool, device=image.device)
+        pairs.append((render, image, keep if left_out is None else ~left_out))
+    count = 3 * sum(int(keep.sum()) for *_, keep in pairs)
+    if count == 0:
+        return 0.0, math.nan, math.nan
+
+    def mean_square(width: float) -> float:
+        total = 0.0
+        for render, image, keep in pairs:
+            total += float(((blurred(render, width).clamp(0, 1) - image) ** 2)[keep].sum())
+        return total / count
+
+    sharp = mean_square(0.0)
+    search = minimize_scalar(
+        mean_square, bounds=(0.0, MAX_WIDTH_PX), method="bounded", options={"xatol": 0.005}
+    )
+    width, fitted = round(float(search.x), 2), float(search.fun)
+    if fitted >= sharp:
+        width, fitted = 0.0, sharp
+    psnr = lambda mse: -10 * math.log10(max(mse, 1e-12))  # noqa: E731
+    return width, psnr(sharp), psnr(fitted)
