@@ -57,16 +57,16 @@ def fit_blur(views: Iterable[tuple[Tensor, Tensor, Tensor | None]]) -> tuple[flo
     """
     pairs = []
     for render, image, left_out in views:
-        keep = torch.ones(image.shape[:2], dtype=torch.bool, device=image.device)
-        pairs.append((render, image, keep if left_out is None else ~left_out))
-    count = 3 * sum(int(keep.sum()) for *_, keep in pairs)
+        keep = torch.ones_like(image[..., :1]) if left_out is None else (~left_out)[..., None].to(image.dtype)
+        pairs.append((render, image, keep))
+    count = 3 * sum(float(keep.sum()) for *_, keep in pairs)
     if count == 0:
         return 0.0, math.nan, math.nan
 
     def mean_square(width: float) -> float:
         total = 0.0
         for render, image, keep in pairs:
-            total += float(((blurred(render, width).clamp(0, 1) - image) ** 2)[keep].sum())
+            total += float((((blurred(render, width).clamp(0, 1) - image) ** 2) * keep).sum())
         return total / count
 
     sharp = mean_square(0.0)
