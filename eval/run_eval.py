@@ -56,7 +56,7 @@ from slam_bridge.scene import Keyframe, Scene, load_scene
 from splat import run_dir as layout
 from splat.background_mask import above_lidar, scored_background_mask
 from splat.blocks.partition import PARTITION_FILE, Partition, read_partition
-from splat.camera_blur import blurred
+from splat.camera_blur import blurred, summary_width_px
 from splat.exposure import through_color_map
 from splat.model import TriangleModel, load_model
 
@@ -487,18 +487,6 @@ def _read_summary(run_dir: Path) -> dict:
     return summary if isinstance(summary, dict) else {}
 
 
-def _camera_blur_px(summary: dict, path: Path) -> float:
-    """The width (px) of the camera's blur the run fitted (``camera_blur.width_px`` of its summary;
-    0 for a run from before it was fitted)."""
-    blur = summary.get("camera_blur") or {}
-    width = blur.get("width_px", 0.0) if isinstance(blur, dict) else blur
-    if isinstance(width, bool) or not isinstance(width, int | float) or not 0 <= width < 100:
-        raise InputError(
-            f"expected a width in pixels (0 to 100), got {width!r}", path=path, field="camera_blur.width_px"
-        )
-    return float(width)
-
-
 def evaluate_run(
     run_dir: str | Path,
     gt: str | Path | None = None,
@@ -557,7 +545,7 @@ def evaluate_run(
     elif not color_maps:
         reasons["test_color_maps"] = "the run learnt no colour maps (lts train --exposure)"
     sky = None if truth is None else sky_masks(truth.mesh, scene.camera, [k.T_world_cam for k in tests])
-    blur_px = _camera_blur_px(summary, layout.summary_path(run_dir))
+    blur_px = summary_width_px(summary, layout.summary_path(run_dir))
     views = _photometric(
         model, views_from, tests, lpips_network, metrics, reasons, moving, color_maps, sky, blur_px
     )

@@ -14,11 +14,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from pathlib import Path
 
 import torch
 from kornia.filters import get_gaussian_kernel1d
 from scipy.optimize import minimize_scalar
 from torch import Tensor
+
+from rig.errors import InputError
 
 #: The widest blur (Gaussian sigma, px) :func:`fit_blur` considers.
 MAX_WIDTH_PX = 1.5
@@ -40,6 +43,19 @@ def blurred(rgb: Tensor, sigma_px: float) -> Tensor:
         padded = out.index_select(dim, rows)
         out = sum(taps[i] * padded.narrow(dim, i, n) for i in range(2 * radius + 1))
     return out
+
+
+def summary_width_px(summary: dict, path: Path) -> float:
+    """The width (px) a run fitted: ``camera_blur.width_px`` of its ``summary.json`` at ``path``
+    (read as ``summary``); 0 for a run from before the blur was fitted. InputError for anything but
+    a number from 0 to 100."""
+    blur = summary.get("camera_blur") or {}
+    width = blur.get("width_px", 0.0) if isinstance(blur, dict) else blur
+    if isinstance(width, bool) or not isinstance(width, int | float) or not 0 <= width < 100:
+        raise InputError(
+            f"expected a width in pixels (0 to 100), got {width!r}", path=path, field="camera_blur.width_px"
+        )
+    return float(width)
 
 
 @torch.no_grad()

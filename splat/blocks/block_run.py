@@ -31,6 +31,7 @@ from splat.blocks.merge import core_triangles, merge_models
 from splat.blocks.options import BlockOptions
 from splat.blocks.partition import PARTITION_FILE, Block, Partition, partition_scene
 from splat.blocks.ray_tasks import BlockJob, cluster_cpus, connect, import_ray, run_jobs
+from splat.camera_blur import summary_width_px
 from splat.config import TrainConfig
 from splat.exposure import ViewExposures
 from splat.held_out_views import evaluate_views, load_held_out_views, write_renders
@@ -144,7 +145,7 @@ def _merge(
     save_model(model, layout.model_path(run_dir))
     maps, rule = _merged_color_maps(scene, partition, runs, run_dir)
     summaries = [results[b.index]["summary"] for b in blocks]
-    blur = _merged_camera_blur(summaries, blocks)
+    blur = _merged_camera_blur(summaries, blocks, runs)
     test_views = load_held_out_views(scene, scene.split("test"), config)
     for view in test_views:
         view.blur_px = blur["width_px"]
@@ -171,10 +172,10 @@ def _merge(
     return result
 
 
-def _merged_camera_blur(summaries: list[dict], blocks: list[Block]) -> dict:
-    """The camera's blur of the merged run: the blocks' fitted widths (one camera) weighted by their
-    training keyframes (0 for a block from before the blur was fitted)."""
-    widths = [float((s.get("camera_blur") or {}).get("width_px", 0.0)) for s in summaries]
+def _merged_camera_blur(summaries: list[dict], blocks: list[Block], runs: list[Path]) -> dict:
+    """The camera's blur of the merged run: the blocks' fitted widths (one camera; their runs'
+    summaries) weighted by their training keyframes."""
+    widths = [summary_width_px(s, layout.summary_path(r)) for s, r in zip(summaries, runs, strict=True)]
     weights = [float(b.n_train) for b in blocks]
     width = round(sum(w * n for w, n in zip(widths, weights, strict=True)) / max(sum(weights), 1.0), 2)
     return {"width_px": width, "blocks_px": widths}

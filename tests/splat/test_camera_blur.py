@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 import torch
 
-from splat.camera_blur import blurred, fit_blur
+from rig.errors import InputError
+from splat.camera_blur import blurred, fit_blur, summary_width_px
 
 
 def sharp_image(seed: int, height: int = 48, width: int = 64) -> torch.Tensor:
@@ -61,3 +62,12 @@ def test_with_no_pixel_to_fit_the_width_is_zero() -> None:
     everything = torch.ones(render.shape[:2], dtype=torch.bool)
     width, sharp, through = fit_blur([(render, render, everything)])
     assert width == 0.0 and sharp != sharp and through != through  # NaN: nothing measured
+
+
+def test_a_runs_width_is_read_from_its_summary_and_a_bad_one_named(tmp_path) -> None:
+    path = tmp_path / "summary.json"
+    assert summary_width_px({"camera_blur": {"width_px": 0.61}}, path) == 0.61
+    assert summary_width_px({}, path) == 0.0  # a run from before the blur was fitted
+    for bad in ("wide", -0.5, True, [0.5]):
+        with pytest.raises(InputError, match=r"summary\.json.*camera_blur\.width_px.*0 to 100"):
+            summary_width_px({"camera_blur": {"width_px": bad}}, path)
