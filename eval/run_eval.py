@@ -518,6 +518,7 @@ def evaluate_run(
         raise InputError("the scene has no test keyframes to evaluate on", path=scene.root, field="split")
     views_from = scene if test_views is None else test_views
     summary = _read_summary(run_dir)
+    blur_px = summary_width_px(summary, layout.summary_path(run_dir))
     metrics: dict = dict.fromkeys(CONTRACT_FIELDS)
     metrics["threshold_m"] = float(threshold_m)
     reasons: dict[str, str] = {}
@@ -545,7 +546,6 @@ def evaluate_run(
     elif not color_maps:
         reasons["test_color_maps"] = "the run learnt no colour maps (lts train --exposure)"
     sky = None if truth is None else sky_masks(truth.mesh, scene.camera, [k.T_world_cam for k in tests])
-    blur_px = summary_width_px(summary, layout.summary_path(run_dir))
     views = _photometric(
         model, views_from, tests, lpips_network, metrics, reasons, moving, color_maps, sky, blur_px
     )
