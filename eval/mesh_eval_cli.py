@@ -62,7 +62,9 @@ def eval_command(
     """Evaluate a training run (photometry, geometry, leaned-view holes, physics, report), or compare
     a mesh with ground truth (--mesh REC --gt GT: Chamfer-L1 and precision/recall/F-score, no culling).
 
-    RUN writes eval.json and report.html in the training run folder.
+    RUN writes eval.json and report.html in the training run folder. Its test views are scored
+    through the camera's blur the run fitted on its training views (camera_blur_px; psnr_sharp is
+    the PSNR without it).
     """
     if run_dir is not None:
         if mesh is not None:
