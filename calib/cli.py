@@ -14,7 +14,7 @@ import click
 import typer
 from typer.core import TyperGroup
 
-from rig.cli_support import console, emit_json, output_file_option
+from rig.cli_support import HELP_MARKUP, console, emit_json, output_file_option
 from rig.recording_options import (
     CAMERA_OPTION,
     DURATION_OPTION,
@@ -43,6 +43,7 @@ class _SessionDefaultGroup(TyperGroup):
 
 
 app = typer.Typer(
+    rich_markup_mode=HELP_MARKUP,
     cls=_SessionDefaultGroup,
     help="Calibrate: camera intrinsics, LiDAR-camera extrinsic, time offset (or SESSION: all it supports).",
     no_args_is_help=True,

@@ -7,9 +7,10 @@ from pathlib import Path
 
 import typer
 
-from rig.cli_support import console, output_file_option
+from rig.cli_support import HELP_MARKUP, console, output_file_option
 
 app = typer.Typer(
+    rich_markup_mode=HELP_MARKUP,
     help="Weights the evaluation uses: LPIPS (AlexNet trunk + v0.1 heads). Needs internet once.",
     no_args_is_help=True,
 )

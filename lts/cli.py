@@ -14,13 +14,14 @@ from eval.viewer_cli import view_command
 from lts import pipeline_cli
 from lts.bench.cli import bench_app
 from rig import trajectory_cli
-from rig.cli_support import VERSION_OPTION, run_app
+from rig.cli_support import HELP_MARKUP, VERSION_OPTION, run_app
 from rig.sim import cli as sim_cli
 from slam_bridge import cli as slam_cli
 from slam_bridge.prepare_cli import prepare_command
 from splat.train_cli import train_command
 
 app = typer.Typer(
+    rich_markup_mode=HELP_MARKUP,
     name="lts",
     help=(
         "LiDAR-guided Triangle Splatting: turn a camera + LiDAR recording into an accurate, "

@@ -10,7 +10,7 @@ from typing import Any
 
 import typer
 
-from rig.cli_support import VERSION_OPTION, console, emit_json, output_file_option, run_app
+from rig.cli_support import HELP_MARKUP, VERSION_OPTION, console, emit_json, output_file_option, run_app
 from rig.errors import InputError
 from rig.recording_options import (
     CAMERA_OPTION,
@@ -21,6 +21,7 @@ from rig.recording_options import (
 )
 
 app = typer.Typer(
+    rich_markup_mode=HELP_MARKUP,
     name="rig",
     help="On-robot tools: record time-stamped camera + LiDAR sessions and inspect them.",
     no_args_is_help=True,

@@ -28,6 +28,10 @@ from rig.version import package_version
 console = Console(stderr=True, soft_wrap=True)
 
 EXIT_BAD_INPUT = 2
+#: How every app's ``--help`` reads its docstrings: as Markdown, which joins a paragraph's source
+#: lines into one (typer's default, Rich markup, keeps each source line break, so the paragraphs
+#: after the first break at the code's line width rather than the terminal's).
+HELP_MARKUP = "markdown"
 #: Usage errors: click's, and those of the copy of click that typer >= 0.29 carries.
 _USAGE_ERRORS = (click.ClickException, getattr(typer, "TyperException", click.ClickException))
 

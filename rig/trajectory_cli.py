@@ -6,11 +6,13 @@ from pathlib import Path
 
 import typer
 
-from rig.cli_support import console, emit_json, output_file_option
+from rig.cli_support import HELP_MARKUP, console, emit_json, output_file_option
 from rig.trajectory import Trajectory
 from rig.trajectory_io import FORMATS, read_trajectory, write_trajectory
 
-app = typer.Typer(help="Inspect and convert trajectory files.", no_args_is_help=True)
+app = typer.Typer(
+    rich_markup_mode=HELP_MARKUP, help="Inspect and convert trajectory files.", no_args_is_help=True
+)
 
 _FORMAT_HELP = f"File format: {', '.join(FORMATS)} (detected from the first line when omitted)."
 
@@ -54,7 +56,7 @@ def info(
 @app.command("convert")
 def convert(
     src: Path = typer.Argument(..., help="Input trajectory file."),
-    dst: Path = output_file_option(..., help="Output file (KITTI also writes <stem>_times.txt)."),
+    dst: Path = output_file_option(..., help="Output file (KITTI also writes STEM_times.txt beside it)."),
     to: str = typer.Option("tum", "--to", help=f"Output format: {', '.join(FORMATS)}."),
     fmt: str | None = typer.Option(None, "--format", help=_FORMAT_HELP),
     times: Path | None = typer.Option(

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from rig.cli_support import console, emit_json, output_folder_option
+from rig.cli_support import HELP_MARKUP, console, emit_json, output_folder_option
 from rig.recording_options import (
     DURATION_OPTION,
     POINTS_TOPIC_OPTION,
@@ -18,7 +18,9 @@ from rig.recording_options import (
 )
 
 app = typer.Typer(
-    help="Import mesh-SLAM output (mesh + trajectory) into a SLAM folder.", no_args_is_help=True
+    rich_markup_mode=HELP_MARKUP,
+    help="Import mesh-SLAM output (mesh + trajectory) into a SLAM folder.",
+    no_args_is_help=True,
 )
 
 

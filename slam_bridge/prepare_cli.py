@@ -95,8 +95,8 @@ def prepare_command(
     normals: Path | None = typer.Option(
         None,
         "--normals",
-        help="Folder of precomputed normal maps (<t_ns> or <frame index:06d> .npy/.png, camera frame) "
-        "to use instead of the SLAM mesh's normals.",
+        help="Folder of precomputed normal maps (T_NS.npy/.png by the frame's stamp, or the frame "
+        "index in six digits; camera frame) to use instead of the SLAM mesh's normals.",
     ),
     sparse_points: bool = typer.Option(
         False,

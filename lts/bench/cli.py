@@ -9,9 +9,11 @@ from pathlib import Path
 import typer
 
 from lts.stress.cli import bench_stability_command
-from rig.cli_support import console, emit_json, output_folder_option
+from rig.cli_support import HELP_MARKUP, console, emit_json, output_folder_option
 
-bench_app = typer.Typer(name="bench", help="Benchmarks (timings and memory).", no_args_is_help=True)
+bench_app = typer.Typer(
+    rich_markup_mode=HELP_MARKUP, name="bench", help="Benchmarks (timings and memory).", no_args_is_help=True
+)
 
 SCENE_OPTION = typer.Option(None, "--scene", help="Prepared scene folder (default: a new virtual-rig scene).")
 GT_OPTION = typer.Option(None, "--gt", help="Virtual-rig ground-truth folder of --scene's session.")
