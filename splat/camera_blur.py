@@ -22,6 +22,7 @@ from scipy.optimize import minimize_scalar
 from torch import Tensor
 
 from rig.errors import InputError
+from splat.losses import psnr_of_mse
 
 #: The widest blur (Gaussian sigma, px) :func:`fit_blur` considers.
 MAX_WIDTH_PX = 1.5
@@ -37,7 +38,10 @@ def blurred(rgb: Tensor, sigma_px: float) -> Tensor:
     radius = max(1, math.ceil(3 * sigma_px))
     taps = get_gaussian_kernel1d(2 * radius + 1, sigma_px, device=rgb.device, dtype=rgb.dtype).view(-1)
     out = rgb
-    for dim in (0, 1):  # separable; sums of shifted slices run several times faster than conv2d here
+    # Separable, as sums of shifted slices: at the widths fitted (0.5-0.8 px, 5-7 taps) they run
+    # 1.3-2x faster than the channels-last grouped convolution splat.losses blurs SSIM's 11 taps with
+    # (as fast at 1.4 px), and the two blurs differ in their borders too.
+    for dim in (0, 1):
         n = out.shape[dim]
         rows = torch.arange(-radius, n + radius, device=rgb.device).clamp(0, n - 1)
         padded = out.index_select(dim, rows)
@@ -92,5 +96,4 @@ def fit_blur(views: Iterable[tuple[Tensor, Tensor, Tensor | None]]) -> tuple[flo
     width, fitted = round(float(search.x), 2), float(search.fun)
     if fitted >= sharp:
         width, fitted = 0.0, sharp
-    psnr = lambda mse: -10 * math.log10(max(mse, 1e-12))  # noqa: E731
-    return width, psnr(sharp), psnr(fitted)
+    return width, psnr_of_mse(sharp), psnr_of_mse(fitted)

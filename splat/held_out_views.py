@@ -12,7 +12,7 @@ from rig.camera import CameraModel
 from slam_bridge.scene import Keyframe, Scene
 from splat.background_mask import scored_background_mask
 from splat.config import TrainConfig
-from splat.losses import dssim
+from splat.losses import dssim, psnr_of_mse
 from splat.model import TriangleModel
 from splat.views import View, load_views
 
@@ -44,7 +44,7 @@ def evaluate_views(model: TriangleModel, views: list[View], camera) -> dict[str,
         out = model.render(camera, view.T_cam_world, background_mask=view.background_mask)
         rgb = view.scored_rgb(out.rgb)
         mse = float(((rgb - view.image) ** 2).mean())
-        psnrs.append(-10 * np.log10(max(mse, 1e-12)))
+        psnrs.append(psnr_of_mse(mse))
         ssims.append(1 - float(dssim(rgb, view.image)))
         if view.depth is not None:
             valid = (view.depth > 0) & (out.alpha > 0.5)

@@ -181,6 +181,12 @@ def dssim(
     return 1.0 - (values.mean() if keep is None else masked_mean(values, keep))
 
 
+def psnr_of_mse(mse: float) -> float:
+    """PSNR (dB, peak 1) of a mean squared error, floored at 1e-12 (120 dB) so that a perfect
+    match stays finite: how held-out views are scored during training."""
+    return -10 * math.log10(max(mse, 1e-12))
+
+
 def accumulated_depth_l1(out: RenderOutput, lidar_depth: Tensor, reference_m: float = math.inf) -> Tensor:
     """Mean ``|Σ w z - D_lidar| / max(1, D_lidar / reference_m)`` (metres) over pixels with a LiDAR
     return (``(H, W)``, 0 = none): returns beyond ``reference_m`` count their error relative to their

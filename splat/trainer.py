@@ -501,7 +501,8 @@ class Trainer:
         views = [self.train_views[i] for i in chosen]
         with torch.no_grad():
             renders = [
-                self._render_training_view(i, self.train_views[i], self.scene.camera)[0].rgb for i in chosen
+                self._render_training_view(i, view, self.scene.camera)[0].rgb
+                for i, view in zip(chosen, views, strict=True)
             ]
         width, sharp, fitted = fit_blur(
             (r, v.image, v.moving_mask) for r, v in zip(renders, views, strict=True)
