@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,6 +28,9 @@ from rig.trajectory_io import read_trajectory
 
 #: Default LiDAR mount for user meshes (the room preset's rig).
 DEFAULT_T_CAM_LIDAR = PRESETS["room"].T_cam_lidar
+#: Camera frames rendered this many ahead of the writer on a second thread, which bounds the
+#: memory they hold.
+FRAMES_AHEAD = 4
 
 
 @dataclass
@@ -123,6 +128,10 @@ def record(
     camera = config.camera()
     renderer = CameraSimulator(camera)
     frame_t, scan_t, imu_t = run.frame_times, run.scan_times, run.imu_times
+
+    def render(i: int) -> np.ndarray:
+        return renderer.render(run.world, run.motion.poses(frame_t[i : i + 1])[0], frame_t[i])[0]
+
     readings = simulate_imu(run.motion, run.imu, run.T_cam_lidar, imu_t, rng_imu)
 
     # One event list in host-time order: (host stamp, kind 0 frame / 1 scan / 2 imu, index).
@@ -145,12 +154,12 @@ def record(
     with (
         threadpool_limits(1, user_api="blas"),
         SessionWriter(out / "session.mcap", metadata=metadata, image_format=config.image_format) as writer,
+        rendered_ahead(render, len(frame_t)) as rendered,
     ):
         for kind, i in zip(kinds[order], index[order], strict=True):
             t_host, t_dev = int(host[kind][i]), int(device[kind][i])
             if kind == 0:
-                rgb, _ = renderer.render(run.world, run.motion.poses(frame_t[i : i + 1])[0], frame_t[i])
-                image = to_bgr8(rgb, rng_image, config.image_noise, config.exposure_jitter)
+                image = to_bgr8(rendered(i), rng_image, config.image_noise, config.exposure_jitter)
                 writer.write_camera_info(camera, t_host, t_dev)
                 writer.write_frame(Frame(image, t_host, t_dev, "camera"))
             elif kind == 1:
@@ -174,3 +183,24 @@ def record(
         "duration_s": run.motion.duration_s,
         "session_bytes": (out / "session.mcap").stat().st_size,
     }
+
+
+@contextmanager
+def rendered_ahead(render: Callable[[int], np.ndarray], count: int) -> Iterator[Callable[[int], np.ndarray]]:
+    """``rendered(i)``: ``render(i)`` for ``i`` asked in increasing order below ``count``, computed on
+    a worker thread up to :data:`FRAMES_AHEAD` items early. A camera frame renders while the caller's
+    LiDAR ray casts and the session's image and chunk compression run, which release the interpreter's
+    lock (two renders at once do not gain: most of a render holds it); rendering draws no random
+    numbers, so the session is the same to the byte."""
+    pending: dict[int, Future] = {}
+    submitted = 0
+    with ThreadPoolExecutor(max_workers=1) as pool:
+
+        def rendered(i: int) -> np.ndarray:
+            nonlocal submitted
+            while submitted < min(count, i + 1 + FRAMES_AHEAD):
+                pending[submitted] = pool.submit(render, submitted)
+                submitted += 1
+            return pending.pop(i).result()
+
+        yield rendered
