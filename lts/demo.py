@@ -17,10 +17,13 @@ reconstruction's, so a rerun reuses them.
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import json
 import shutil
 import subprocess
 import sys
+import threading
 from collections.abc import Callable
 from pathlib import Path
 
@@ -34,6 +37,28 @@ from rig.trajectory_io import read_tum, write_tum
 #: 34.34 against 34.65 dB at 1150 of the fast preset's 1200, F 0.965 against 0.962, no probe
 #: through either way) and its whole run stays under a minute (docs/benchmarks.md).
 QUICK_ITERATIONS = 800
+
+#: What the reconstruction imports, loaded while the recorder replays the scene in real time in its
+#: own process and leaves this one idle (2.3 s of imports off the demo's path). ``torch._dynamo`` is
+#: what the first ``torch.optim`` optimizer imports.
+RECONSTRUCTION_MODULES = (
+    "torch", "torch._dynamo", "pycolmap", "calib.session_calib", "slam_bridge.scene_builder",
+    "splat.trainer", "eval.run_eval", "eval.report",
+)  # fmt: skip
+
+
+def import_while_recording() -> threading.Thread:
+    """A started thread that imports :data:`RECONSTRUCTION_MODULES` (join it before the next stage).
+    A module that fails to import is left for its stage to report."""
+
+    def load() -> None:
+        for name in RECONSTRUCTION_MODULES:
+            with contextlib.suppress(ImportError):
+                importlib.import_module(name)
+
+    thread = threading.Thread(target=load, name="import-while-recording", daemon=True)
+    thread.start()
+    return thread
 
 
 def first_frame_ns(session: Path) -> int:
@@ -119,7 +144,9 @@ def run_demo(
     key = ["lts sim", str(sim_dir), "--preset", "room", *(["--quick"] if quick else [])]
     stages.run("simulate", key, [], sim_dir / "session.mcap", lambda: simulate_preset(sim_dir, "room", quick))
     key = ["rig record", "--sim", str(sim_dir), "--once", "--out", str(session)]
+    importing = import_while_recording()
     stages.run("record", key, [sim_dir], session, lambda: record_through_mock_devices(sim_dir, session, log))
+    importing.join()
 
     def move_ground_truth() -> None:
         shift = shifted_ground_truth(sim_dir, session, gt)
