@@ -39,7 +39,7 @@ from rig.trajectory_io import read_tum, write_tum
 QUICK_ITERATIONS = 800
 
 #: What the reconstruction imports, loaded while the recorder replays the scene in real time in its
-#: own process and leaves this one idle (2.3 s of imports off the demo's path). ``torch._dynamo`` is
+#: own process and leaves this one idle (about 2.5 s of imports off the demo's path). ``torch._dynamo`` is
 #: what the first ``torch.optim`` optimizer imports.
 RECONSTRUCTION_MODULES = (
     "torch", "torch._dynamo", "pycolmap", "calib.session_calib", "slam_bridge.scene_builder",

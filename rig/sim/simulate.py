@@ -188,10 +188,10 @@ def record(
 @contextmanager
 def rendered_ahead(render: Callable[[int], np.ndarray], count: int) -> Iterator[Callable[[int], np.ndarray]]:
     """``rendered(i)``: ``render(i)`` for ``i`` asked in increasing order below ``count``, computed on
-    a worker thread up to :data:`FRAMES_AHEAD` items early. A camera frame renders while the caller's
-    LiDAR ray casts and the session's image and chunk compression run, which release the interpreter's
-    lock (two renders at once do not gain: most of a render holds it); rendering draws no random
-    numbers, so the session is the same to the byte."""
+    a worker thread up to :data:`FRAMES_AHEAD` items early. A camera frame renders while the caller
+    simulates the LiDAR and compresses the session's images and chunks, which lets go of the
+    interpreter's lock (two renders at once do not gain: most of a render holds it); rendering draws
+    no random numbers, so the session is the same to the byte."""
     pending: dict[int, Future] = {}
     submitted = 0
     with ThreadPoolExecutor(max_workers=1) as pool:
