@@ -174,8 +174,19 @@ VERSION_OPTION = typer.Option(
 )
 
 
+def _no_file_above(path: Path | None) -> Path | None:
+    """``path`` unless one of the folders it would be made in is a file."""
+    if path is not None:
+        for folder in path.parents:
+            if folder.exists():
+                if not folder.is_dir():
+                    raise typer.BadParameter(f"{folder} is a file, not a folder")
+                break
+    return path
+
+
 def _in_existing_folder(path: Path | None) -> Path | None:
-    if path is not None and not path.parent.is_dir():
+    if path is not None and not _no_file_above(path).parent.is_dir():
         raise typer.BadParameter(f"the folder {path.parent} does not exist")
     return path
 
@@ -189,11 +200,13 @@ def _path_parameter(default: Any, flags: tuple[str, ...], help: str, **checks: A
 
 def output_file_option(default: Any, *flags: str, help: str) -> Any:
     """A Typer option (or, with no ``flags``, argument) naming a file to write: refused on the
-    command line (exit 2) when it is a folder or its folder does not exist, before any work."""
+    command line (exit 2) when it is a folder or its folder does not exist (or is a file), before
+    any work."""
     return _path_parameter(default, flags, help, dir_okay=False, callback=_in_existing_folder)
 
 
 def output_folder_option(default: Any, *flags: str, help: str) -> Any:
     """A Typer option (or, with no ``flags``, argument) naming a folder to write into (made when
-    missing): refused on the command line (exit 2) when it is a file, before any work."""
-    return _path_parameter(default, flags, help, file_okay=False)
+    missing): refused on the command line (exit 2) when it or a folder above it is a file, before
+    any work."""
+    return _path_parameter(default, flags, help, file_okay=False, callback=_no_file_above)

@@ -137,7 +137,14 @@ def test_an_output_path_of_the_wrong_kind_stops_before_any_work(tmp_path: Path) 
     a_file = tmp_path / "notes.txt"
     a_file.write_text("not a folder")
     missing = tmp_path / "missing" / "calib.yaml"
+    under_a_file = a_file / "run"
     cases = [
+        (["lts", "demo", "--quick", "--out", str(under_a_file)], f"{a_file} is a file, not a folder"),
+        (["lts", "sim", str(under_a_file / "deeper"), "--quick"], f"{a_file} is a file, not a folder"),
+        (
+            ["rig", "record", "--sim", str(tmp_path), "--out", str(under_a_file / "s.mcap")],
+            f"{a_file} is a file, not a folder",
+        ),
         (["lts", "sim", str(a_file), "--quick"], f"dir '{a_file}' is a file"),
         (["lts", "reconstruct", str(a_file), "--out", str(a_file)], f"dir '{a_file}' is a file"),
         (
