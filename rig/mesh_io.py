@@ -95,6 +95,10 @@ def _obj_indices(path: Path) -> None:
             )
 
 
+#: Triangle mesh files that trimesh reads (its other loaders read point clouds).
+MESH_SUFFIXES = (".ply", ".obj", ".stl", ".off", ".glb", ".gltf")
+
+
 def load_mesh(path: str | Path) -> trimesh.Trimesh:
     """Load a triangle mesh (PLY/OBJ/GLB/...) as one :class:`trimesh.Trimesh`, unprocessed.
 
@@ -107,6 +111,11 @@ def load_mesh(path: str | Path) -> trimesh.Trimesh:
     if not path.is_file():
         raise InputError("no such mesh file", path=path)
     suffix = path.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise InputError(
+            f"{suffix or 'no extension'}: not a mesh file type (expected {', '.join(MESH_SUFFIXES)})",
+            path=path,
+        )
     if suffix == ".ply":
         _ply_ascii_counts(path)
     elif suffix == ".obj":

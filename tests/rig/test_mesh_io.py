@@ -19,6 +19,10 @@ def test_load_mesh_errors(tmp_path: Path) -> None:
     garbage.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nend_header\n\x00\x01")
     with pytest.raises(InputError):
         load_mesh(garbage)
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not a mesh")
+    with pytest.raises(InputError, match=r"\.txt: not a mesh file type \(expected \.ply, \.obj"):
+        load_mesh(notes)
 
 
 def test_face_indexing_a_missing_vertex_is_named(tmp_path: Path) -> None:
