@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import importlib
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -31,6 +32,7 @@ import numpy as np
 
 from lts.pipeline import ReconstructOptions, ReconstructResult, reconstruct
 from lts.stages import StageRecord, StageRunner
+from rig.native_build import NativeBuildError
 from rig.trajectory_io import read_tum, write_tum
 
 #: The quick room's training: its 15 keyframes at 160×120 gain little after 800 iterations (PSNR
@@ -45,16 +47,28 @@ RECONSTRUCTION_MODULES = (
     "torch", "torch._dynamo", "pycolmap", "calib.session_calib", "slam_bridge.scene_builder",
     "splat.trainer", "eval.run_eval", "eval.report",
 )  # fmt: skip
+#: The compiled extensions the reconstruction loads (``module:function``), in the order its stages
+#: need them: a first demo compiles them (~40 s) while the recorder runs, not after it.
+EXTENSION_LOADERS = ("calib.photo_kernel:photo_extension", "splat.raster.extension:optional_cpu_extension")
+#: The nice value of the compile: the real-time recorder keeps the CPU it needs.
+BUILD_NICENESS = 19
 
 
 def import_while_recording() -> threading.Thread:
-    """A started thread that imports :data:`RECONSTRUCTION_MODULES` (join it before the next stage).
-    A module that fails to import is left for its stage to report."""
+    """A started thread that imports :data:`RECONSTRUCTION_MODULES`, then loads (building where
+    not built yet) the :data:`EXTENSION_LOADERS` at :data:`BUILD_NICENESS` (Linux; join it before
+    the next stage). A module or an extension that fails is left for its stage to report."""
 
     def load() -> None:
         for name in RECONSTRUCTION_MODULES:
             with contextlib.suppress(ImportError):
                 importlib.import_module(name)
+        if sys.platform.startswith("linux"):  # a thread's own nice value, which the compiler inherits
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), BUILD_NICENESS)
+        for loader in EXTENSION_LOADERS:
+            module, function = loader.split(":")
+            with contextlib.suppress(ImportError, NativeBuildError):
+                getattr(importlib.import_module(module), function)()
 
     thread = threading.Thread(target=load, name="import-while-recording", daemon=True)
     thread.start()
