@@ -11,7 +11,11 @@ point is also dropped where its pixel lies within the moving mask
 missed returns of a vehicle lie beside the found ones of the same sweep. (The moving points of
 all the sweeps of a keyframe's window would mask a vehicle's whole trail: on the 20 s street,
 whose keyframes lie 0.5 s apart, 13 % of the static points instead of 2.9 %, and the mesh the
-cameras see lost 0.015 F.)"""
+cameras see lost 0.015 F.)
+
+A vehicle that the top of the LiDAR's field cuts (a lorry beside a car's roof LiDAR, whose top beam
+rises 2°) goes on above its highest returns where no beam reaches: its moving points at the top of
+the field are kept apart too (:func:`at_field_top`), and the mask reaches up from them."""
 
 from __future__ import annotations
 
@@ -24,29 +28,47 @@ import numpy as np
 from rig.calibration import Calibration
 from rig.camera import CameraModel
 from rig.deskew import deskewed_sweep
-from rig.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, label_dynamic
+from rig.dynamic_points import DEFAULT_DYNAMIC, DynamicConfig, SweepView, label_dynamic
 from rig.messages import Scan
 from rig.trajectory import Trajectory
 from rig.transforms import invert, transform_points
 from slam_bridge.depth_image import moving_pixel_mask
 from slam_bridge.keyframe_selection import lidar_clock
-from slam_bridge.scene import LIDAR_DIR, MOVING_DIR, Keyframe
+from slam_bridge.scene import LIDAR_DIR, MOVING_DIR, MOVING_TOP_DIR, Keyframe
 
 #: Points nearer than this along the camera's z are never depth (as in the z-buffer).
 NEAR_M = 0.05
 #: A keyframe's moving points come from the sweeps stamped within this of its image (half a sweep
 #: of a 10 Hz LiDAR): a vehicle has not moved far from where the image shows it.
 MOVING_WINDOW_S = 0.05
+#: A sweep's field ends at the elevation of its FIELD_TOP_RANK-th highest return (a few stray returns
+#: above the top beam do not lift it), and a point within FIELD_TOP_MARGIN_DEG below that (two or
+#: three beam spacings of a 64-beam spinning LiDAR's upper block) is at the top of the field.
+FIELD_TOP_RANK = 20
+FIELD_TOP_MARGIN_DEG = 1.0
 
 
 @dataclass(frozen=True)
 class KeyframePoints:
     """Per keyframe (in time order), camera-frame points ``(N, 3)`` float32 in its image: the static
     ones of every scan in its window (less those beside the moving ones of the same scan,
-    :func:`off_moving_pixels`), and the moving ones of the sweeps taken with its image."""
+    :func:`off_moving_pixels`), the moving ones of the sweeps taken with its image, and those of
+    them at the top of the LiDAR's field (:func:`at_field_top`)."""
 
     static: list[np.ndarray]
     moving: list[np.ndarray]
+    moving_at_top: list[np.ndarray]
+
+
+def at_field_top(view: SweepView) -> np.ndarray:
+    """``(N,)`` bool: the sweep's points within :data:`FIELD_TOP_MARGIN_DEG` of elevation (in the
+    sensor's frame, z up) below the top of its field (:data:`FIELD_TOP_RANK`)."""
+    sensor = transform_points(invert(view.T_world_sensor), view.points_world)
+    elevation = np.degrees(np.arctan2(sensor[:, 2], np.hypot(sensor[:, 0], sensor[:, 1])))
+    if len(elevation) < FIELD_TOP_RANK:
+        return np.zeros(len(elevation), dtype=bool)
+    top = np.partition(elevation, -FIELD_TOP_RANK)[-FIELD_TOP_RANK]
+    return elevation >= top - FIELD_TOP_MARGIN_DEG
 
 
 def keyframe_windows(t_ns: np.ndarray, interval_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -88,6 +110,7 @@ def keyframe_lidar(
     T_cam_world = invert(np.stack([k.T_world_cam for k in keyframes]))
     chunks: list[list[np.ndarray]] = [[] for _ in keyframes]
     moving_chunks: list[list[np.ndarray]] = [[] for _ in keyframes]
+    top_chunks: list[list[np.ndarray]] = [[] for _ in keyframes]
     stamps: list[int] = []  # each sweep's host stamp, by index
 
     def sweeps() -> Iterator[tuple[float, np.ndarray, np.ndarray]]:
@@ -101,6 +124,7 @@ def keyframe_lidar(
     for index, view, moving in label_dynamic(sweeps(), dynamic):
         t_host = stamps[index]
         first, stop = np.searchsorted(hi, t_host), np.searchsorted(lo, t_host, side="right")
+        moving_at_top = moving & at_field_top(view) if moving.any() else moving
         for n in range(first, stop):
             in_camera = transform_points(T_cam_world[n], view.points_world)
             static = in_view(in_camera[~moving], camera)
@@ -109,12 +133,13 @@ def keyframe_lidar(
                 static = off_moving_pixels(static, moving_in_view, camera)
                 if abs(t_host - image_t[n]) <= MOVING_WINDOW_S * 1e9:
                     moving_chunks[n].append(moving_in_view)
+                    top_chunks[n].append(in_view(in_camera[moving_at_top], camera))
             chunks[n].append(static)
 
     def joined(parts: list[list[np.ndarray]]) -> list[np.ndarray]:
         return [np.concatenate(c) if c else np.zeros((0, 3), np.float32) for c in parts]
 
-    return KeyframePoints(joined(chunks), joined(moving_chunks))
+    return KeyframePoints(joined(chunks), joined(moving_chunks), joined(top_chunks))
 
 
 def off_moving_pixels(static: np.ndarray, moving: np.ndarray, camera: CameraModel) -> np.ndarray:
@@ -132,12 +157,15 @@ def off_moving_pixels(static: np.ndarray, moving: np.ndarray, camera: CameraMode
 def write_keyframe_lidar(
     out: Path, keyframes: list[Keyframe], points: KeyframePoints, done: Callable[[], None]
 ) -> None:
-    """Save each keyframe's static points ``(N, 3)`` float32 as ``out/lidar/NAME.npy`` and its moving
-    ones, where it has any, as ``out/moving/NAME.npy``; ``done()`` after each keyframe."""
+    """Save each keyframe's static points ``(N, 3)`` float32 as ``out/lidar/NAME.npy``, its moving
+    ones, where it has any, as ``out/moving/NAME.npy`` and those at the top of the LiDAR's field as
+    ``out/moving_top/NAME.npy``; ``done()`` after each keyframe."""
     (out / LIDAR_DIR).mkdir(parents=True, exist_ok=True)
-    for keyframe, static, moving in zip(keyframes, points.static, points.moving, strict=True):
+    rows = zip(keyframes, points.static, points.moving, points.moving_at_top, strict=True)
+    for keyframe, static, moving, moving_at_top in rows:
         np.save(out / LIDAR_DIR / f"{keyframe.name}.npy", static)
-        if len(moving):
-            (out / MOVING_DIR).mkdir(exist_ok=True)
-            np.save(out / MOVING_DIR / f"{keyframe.name}.npy", moving)
+        for folder, part in ((MOVING_DIR, moving), (MOVING_TOP_DIR, moving_at_top)):
+            if len(part):
+                (out / folder).mkdir(exist_ok=True)
+                np.save(out / folder / f"{keyframe.name}.npy", part)
         done()

@@ -41,6 +41,8 @@ SCENE_FILE = "scene.json"
 SPARSE_POINTS_FILE = "sparse_points.ply"
 LIDAR_DIR = "lidar"
 MOVING_DIR = "moving"
+#: Of those, the points at the top of the LiDAR's field (``slam_bridge.keyframe_lidar.at_field_top``).
+MOVING_TOP_DIR = "moving_top"
 #: Version of the folder layout; 1 kept depth images instead of LiDAR points and no options.
 FORMAT_VERSION = 2
 Split = Literal["train", "test"]
@@ -122,12 +124,15 @@ class Scene:
         return self.lidar(keyframe).depth()
 
     def moving_mask(self, keyframe: Keyframe) -> np.ndarray | None:
-        """``(H, W)`` bool: the pixels near a moving object's point (``moving/NAME.npy``;
+        """``(H, W)`` bool: the pixels near a moving object's point (``moving/NAME.npy``), and above
+        those at the top of the LiDAR's field (``moving_top/NAME.npy``;
         :func:`~slam_bridge.depth_image.moving_pixel_mask`), or None when the keyframe has none."""
         path = self.root / MOVING_DIR / f"{keyframe.name}.npy"
         if not path.is_file():
             return None
-        return moving_pixel_mask(_load_array(path, (None, 3)), self.camera)
+        top = self.root / MOVING_TOP_DIR / f"{keyframe.name}.npy"
+        at_top = _load_array(top, (None, 3)) if top.is_file() else None
+        return moving_pixel_mask(_load_array(path, (None, 3)), self.camera, at_top)
 
     def normals(self, keyframe: Keyframe) -> np.ndarray:
         """``(H, W, 3)`` float32 camera-frame normal prior, zeros where there is none."""

@@ -15,12 +15,19 @@ from pathlib import Path
 import trimesh
 
 from rig.atomic_file import write_atomic
-from slam_bridge.scene import LIDAR_DIR, MOVING_DIR, SPARSE_POINTS_FILE, Scene, write_scene_index
+from slam_bridge.scene import (
+    LIDAR_DIR,
+    MOVING_DIR,
+    MOVING_TOP_DIR,
+    SPARSE_POINTS_FILE,
+    Scene,
+    write_scene_index,
+)
 from splat.blocks.partition import Block, GroundFrame
 from splat.config import TrainConfig, validated
 
 #: The parent scene's per-keyframe folders a block links to.
-LINKED_DIRS = ("images", LIDAR_DIR, "normals", MOVING_DIR)
+LINKED_DIRS = ("images", LIDAR_DIR, "normals", MOVING_DIR, MOVING_TOP_DIR)
 #: A block trains at least this many iterations, however few keyframes it has.
 MIN_BLOCK_ITERATIONS = 500
 

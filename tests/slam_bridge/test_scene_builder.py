@@ -353,6 +353,62 @@ def test_static_points_beside_a_moving_objects_points_are_dropped() -> None:
     np.testing.assert_array_equal(off_moving_pixels(static, moving[:0], camera), static)
 
 
+def test_moving_points_at_the_top_of_the_lidars_field_are_found() -> None:
+    """Rings from -24 to +2 degrees (a spinning LiDAR's field) and three stray returns above them:
+    the points within 1 degree below the 20th highest return are at the top (the rings at 1.3 and
+    2 degrees, and the strays)."""
+    from rig.dynamic_points import SweepView
+    from slam_bridge.keyframe_lidar import at_field_top
+
+    rings = np.concatenate([np.arange(-24.0, 1.0), [1.3, 2.0]])  # 27 rings
+    elevations = np.repeat(rings, 40)  # 40 returns each
+    elevations = np.concatenate([elevations, [9.0, 12.0, 15.0]])
+    azimuths = np.tile(np.linspace(0, 2 * np.pi, 40, endpoint=False), 27)
+    azimuths = np.concatenate([azimuths, [0.0, 0.0, 0.0]])
+    e, a = np.radians(elevations), azimuths
+    sensor = 10.0 * np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], axis=1)
+    pose = np.eye(4)
+    pose[:3, 3] = [5.0, -2.0, 1.7]  # the sweep's pose in the world
+    view = SweepView(0.0, pose, transform_points(pose, sensor), np.zeros((0, 0), np.float32))
+    top = at_field_top(view)
+    np.testing.assert_array_equal(top, elevations > 1.0)
+    assert not at_field_top(SweepView(0.0, pose, transform_points(pose, sensor[:5]), view.ranges)).any()
+
+
+def test_keyframe_points_are_written_where_a_keyframe_has_them(tmp_path: Path) -> None:
+    from slam_bridge.keyframe_lidar import KeyframePoints, write_keyframe_lidar
+    from slam_bridge.scene import LIDAR_DIR, MOVING_DIR, MOVING_TOP_DIR, Keyframe
+
+    keyframes = [Keyframe(name, 0, np.eye(4), "train") for name in ("a", "b")]
+    point, none = np.ones((1, 3), np.float32), np.zeros((0, 3), np.float32)
+    points = KeyframePoints([point, point], [point, point], [point, none])
+    done = []
+    write_keyframe_lidar(tmp_path, keyframes, points, lambda: done.append(1))
+    assert len(done) == 2
+    assert sorted(p.name for p in (tmp_path / LIDAR_DIR).iterdir()) == ["a.npy", "b.npy"]
+    assert sorted(p.name for p in (tmp_path / MOVING_DIR).iterdir()) == ["a.npy", "b.npy"]
+    assert [p.name for p in (tmp_path / MOVING_TOP_DIR).iterdir()] == ["a.npy"]
+    np.testing.assert_array_equal(np.load(tmp_path / MOVING_TOP_DIR / "a.npy"), point)
+
+
+def test_a_moving_object_cut_by_the_lidars_field_is_masked_up_its_columns() -> None:
+    """A lorry's returns at the top of the field at 10 m: its pixel columns are masked up to the row
+    4 m higher (120 px at a 300 px focal length), and no higher."""
+    from slam_bridge.depth_image import MOVING_MASK_ABOVE_M, moving_pixel_mask
+
+    camera = CameraModel("pinhole", 320, 240, [[300, 0, 159.5], [0, 300, 119.5], [0, 0, 1]], [])
+    top_row = np.array([[0.0, 0.5, 10.0]])  # pixel (159.5, 134.5)
+    below = np.array([[0.0, 1.5, 10.0]])  # pixel (159.5, 164.5)
+    points = np.concatenate([top_row, below])
+    plain = moving_pixel_mask(points, camera)
+    cut = moving_pixel_mask(points, camera, top_row)
+    assert (cut >= plain).all() and not plain[100, 160]
+    highest = round(134.5 - 300 * MOVING_MASK_ABOVE_M / 10.0)  # 14.5 rounds to 14
+    assert cut[highest:135, 160].all() and not cut[: highest - 4, 160].any()
+    assert not cut[100, 170]  # other columns keep the plain mask
+    np.testing.assert_array_equal(moving_pixel_mask(points, camera, top_row[:0]), plain)
+
+
 @pytest.mark.parametrize(
     ("span_s", "fps", "interval_s", "count"),
     [

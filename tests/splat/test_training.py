@@ -549,7 +549,7 @@ def test_masked_pixels_give_the_photometric_loss_no_gradient():
 def test_a_keyframe_with_moving_points_has_a_mask_around_them(scene_dir, tmp_path):
     import shutil
 
-    from slam_bridge.scene import MOVING_DIR, load_scene
+    from slam_bridge.scene import MOVING_DIR, MOVING_TOP_DIR, load_scene
 
     root = tmp_path / "scene"
     shutil.copytree(scene_dir, root)
@@ -564,6 +564,11 @@ def test_a_keyframe_with_moving_points_has_a_mask_around_them(scene_dir, tmp_pat
     assert scene.moving_mask(second) is None
     views = load_views(scene, scene.keyframes[:2])
     assert views[0].moving_mask is not None and views[1].moving_mask is None
+    # Where the point is at the top of the LiDAR's field, the mask also reaches up its column.
+    (root / MOVING_TOP_DIR).mkdir()
+    np.save(root / MOVING_TOP_DIR / f"{first.name}.npy", centre)
+    cut = scene.moving_mask(first)
+    assert (cut >= mask).all() and cut[: CAMERA.height // 2, CAMERA.width // 2].all()
 
 
 def test_far_returns_count_their_depth_error_relative_to_their_range():
