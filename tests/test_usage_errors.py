@@ -197,5 +197,8 @@ def test_every_seed_option_refuses_a_negative_seed_on_the_command_line() -> None
     assert len(seeds) >= 5
     unchecked = [" ".join(words) for words, p in seeds if p.min != 0]
     assert not unchecked
-    (last,) = _refused([["lts", "sim", "unused", "--quick", "--seed", "-1"]])
-    assert "Invalid value for '--seed'" in last
+    seed, speed = _refused(
+        [["lts", "sim", "unused", "--quick", "--seed", "-1"], ["lts", "sim", "unused", "--speed", "0"]]
+    )
+    assert "Invalid value for '--seed'" in seed
+    assert speed == "error: speed_mps: must be positive, got 0.0"

@@ -33,6 +33,13 @@ def sim(
         help="Seconds of motion (presets). \\[default: 20, floor: 120]",
         show_default=False,
     ),
+    speed: float | None = typer.Option(
+        None,
+        "--speed",
+        help="Cruising speed along the preset's path (m/s); on the street the cars in the robot's lane "
+        "drive at it too. \\[default: 0.45, office: 0.5, street: 3]",
+        show_default=False,
+    ),
     quick: bool = typer.Option(
         False,
         "--quick",
@@ -115,6 +122,7 @@ def sim(
             trajectory=None if trajectory is None else str(trajectory),
             trajectory_rate_hz=rate,
             seed=seed,
+            speed_mps=speed,
             carrier=carrier,
             fps=fps,
             camera_model=camera,

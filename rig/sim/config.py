@@ -37,6 +37,8 @@ class SimConfig:
             instead of a preset; ``trajectory_rate_hz`` times trajectories without stamps.
         seed: seeds scene layout, textures, path wobble, clocks and every noise.
         duration_s: seconds of motion along a preset's path (the preset's: 20, ``floor`` 120).
+        speed_mps: cruising speed along a preset's path (m/s; ``None`` takes the preset's); on the
+            ``street`` the cars in the robot's lane drive at it too.
         from_rest: the robot starts from rest and stops at the end; ``False``: it is moving at
             its cruising speed from the first frame to the last (the quick run's 3 s).
         carrier: ``wheeled`` (camera 0.35–0.55 m high), ``handheld`` (1.3–1.5 m) or ``car``
@@ -58,6 +60,7 @@ class SimConfig:
     trajectory_rate_hz: float = 30.0
     seed: int = 0
     duration_s: float | None = None
+    speed_mps: float | None = None
     from_rest: bool = True
     carrier: str | None = None
     fps: float = 30.0
@@ -83,6 +86,10 @@ class SimConfig:
         for name, value in defaults.items():
             if getattr(self, name) is None:
                 object.__setattr__(self, name, value)
+        if preset is not None and self.speed_mps is None:
+            object.__setattr__(self, "speed_mps", preset.speed_mps)
+        if self.speed_mps is not None and not self.speed_mps > 0:
+            raise InputError(f"must be positive, got {self.speed_mps}", field="speed_mps")
         if (self.mesh is None) != (self.trajectory is None):
             raise InputError("--mesh and --trajectory go together", field="mesh/trajectory")
         for name in (

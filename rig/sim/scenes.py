@@ -232,7 +232,8 @@ class Preset:
         closed: the path is a loop (driven round as often as the duration needs).
         T_cam_lidar: ``(4, 4)`` LiDAR-to-camera transform of the rig in this preset.
         speed_mps: the robot's cruising speed along the path.
-        movers: seeded generator of the objects that move during the run (none if ``None``).
+        movers: seeded generator of the objects that move during the run, given the robot's
+            cruising speed (none if ``None``).
         sky: an open scene: rays that miss everything see the sky.
         sensor_defaults: :class:`~rig.sim.config.SimConfig` values this preset's rig has unless
             the user sets them (carrier, LiDAR, image size, range).
@@ -244,7 +245,7 @@ class Preset:
     closed: bool
     T_cam_lidar: np.ndarray
     speed_mps: float = 0.45
-    movers: Callable[[np.random.Generator], list[Mover]] | None = None
+    movers: Callable[[np.random.Generator, float], list[Mover]] | None = None
     sky: bool = False
     sensor_defaults: dict[str, object] = field(default_factory=dict)
 

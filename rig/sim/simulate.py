@@ -79,13 +79,13 @@ def prepare(config: SimConfig) -> SimRun:
         T_cam_lidar = DEFAULT_T_CAM_LIDAR
     else:
         preset = get_preset(config.preset)
-        world = preset_world(preset, config.seed, config.traffic)
+        world = preset_world(preset, config.seed, config.traffic, config.speed_mps)
         motion = path_motion(
             np.array(preset.waypoints),
             config.duration_s,
             rng=rng_path,
             carrier=config.carrier,
-            speed_mps=preset.speed_mps,
+            speed_mps=config.speed_mps,
             closed=preset.closed,
             from_rest=config.from_rest,
         )  # type: ignore[arg-type]

@@ -116,12 +116,13 @@ def _vehicle(size: tuple[float, float, float], paint: str, cabin: bool) -> Scene
     return join_parts(parts)
 
 
-def street_traffic(rng: np.random.Generator) -> list[Mover]:
-    """The moving vehicles: each drives straight at constant speed through the whole run."""
+def street_traffic(rng: np.random.Generator, ego_speed_mps: float = EGO_SPEED_MPS) -> list[Mover]:
+    """The moving vehicles: each drives straight at constant speed through the whole run, the two
+    in the ego car's lane at its ``ego_speed_mps``."""
     j = rng.uniform(-0.3, 0.3, 5)
     plan = (  # name, size, paint, start x/y, velocity
-        ("car_ahead", CAR, "paint_red", (14.0, EGO_LANE_Y), (EGO_SPEED_MPS + 0.1 * j[0], 0.0)),
-        ("car_behind", CAR, "paint_blue", (-12.0, EGO_LANE_Y), (EGO_SPEED_MPS, 0.0)),
+        ("car_ahead", CAR, "paint_red", (14.0, EGO_LANE_Y), (ego_speed_mps + 0.1 * j[0], 0.0)),
+        ("car_behind", CAR, "paint_blue", (-12.0, EGO_LANE_Y), (ego_speed_mps, 0.0)),
         ("lorry_beside", LORRY, "paint_white", (-6.0, -5.25), (3.3 + 0.1 * j[1], 0.0)),
         ("oncoming_1", CAR, "paint_white", (80.0 + j[2], 1.75), (-8.0, 0.0)),
         ("oncoming_2", CAR, "paint_blue", (150.0 + j[3], 5.25), (-9.0, 0.0)),

@@ -12,6 +12,7 @@ import pytest
 import trimesh
 import yaml
 
+from rig.errors import InputError
 from rig.sim.camera_sim import CameraSimulator
 from rig.sim.config import SimConfig
 from rig.sim.lidar_sim import simulate_scan
@@ -67,6 +68,23 @@ def test_street_defaults_are_a_car_with_a_kitti_like_lidar_and_a_wide_camera() -
     assert SimConfig(preset="street", lidar="velodyne32", width=320).width == 320
     assert SimConfig(preset="room").lidar == "mid360"
     assert prepare(SimConfig(preset="street", traffic=False).quick()).world.movers == ()
+
+
+def test_a_creeping_drive_keeps_the_cars_of_its_lane_at_its_speed() -> None:
+    """--speed: the ego car and the cars in its lane at 0.85 m/s; the others as at the preset's 3."""
+    creeping = prepare(SimConfig(preset="street", speed_mps=0.85).quick())
+    cruising = prepare(SimConfig(preset="street").quick())
+    assert SimConfig(preset="street").speed_mps == 3.0 and SimConfig(preset="office").speed_mps == 0.5
+    assert SimConfig(mesh="m.ply", trajectory="t.tum").speed_mps is None
+    t = creeping.frame_times
+    path = creeping.motion.poses(t)[:, :3, 3]
+    assert np.linalg.norm(path[-1] - path[0]) / (t[-1] - t[0]) == pytest.approx(0.85, rel=0.05)
+    for slow, fast in zip(creeping.world.movers, cruising.world.movers, strict=True):
+        velocity = np.asarray(slow.velocity_xy) - np.asarray(fast.velocity_xy)
+        in_lane = slow.name in ("car_ahead", "car_behind")
+        np.testing.assert_allclose(velocity, (-2.15, 0.0) if in_lane else (0.0, 0.0), atol=1e-12)
+    with pytest.raises(InputError, match="speed_mps"):
+        SimConfig(preset="street", speed_mps=0.0)
 
 
 def test_the_camera_sees_sky_and_what_is_above_the_lidar_field(street_run) -> None:
