@@ -116,7 +116,7 @@ def _vehicle(size: tuple[float, float, float], paint: str, cabin: bool) -> Scene
     return join_parts(parts)
 
 
-def street_traffic(rng: np.random.Generator, ego_speed_mps: float = EGO_SPEED_MPS) -> list[Mover]:
+def street_traffic(rng: np.random.Generator, ego_speed_mps: float) -> list[Mover]:
     """The moving vehicles: each drives straight at constant speed through the whole run, the two
     in the ego car's lane at its ``ego_speed_mps``."""
     j = rng.uniform(-0.3, 0.3, 5)

@@ -49,13 +49,12 @@ def sky_colour(directions: np.ndarray) -> np.ndarray:
     return (1.0 - up) * SKY_HORIZON + up * SKY_ZENITH
 
 
-def preset_world(preset: Preset, seed: int, traffic: bool = True, speed_mps: float | None = None) -> World:
+def preset_world(preset: Preset, seed: int, traffic: bool, speed_mps: float) -> World:
     """The procedural scene of ``preset`` and, with ``traffic``, its movers (for a robot at
-    ``speed_mps``, the preset's when None); layout and textures seeded by ``seed``."""
+    ``speed_mps``); layout and textures seeded by ``seed``."""
     scene = preset.build(np.random.default_rng([seed, 1]))
-    speed = preset.speed_mps if speed_mps is None else speed_mps
     rng = np.random.default_rng([seed, 3])
-    movers = tuple(preset.movers(rng, speed)) if preset.movers and traffic else ()
+    movers = tuple(preset.movers(rng, speed_mps)) if preset.movers and traffic else ()
     material = np.concatenate([scene.face_material, *(m.face_material for m in movers)])
     return World(preset.name, scene.mesh, ProceduralAppearance(material, seed), movers, preset.sky)
 
